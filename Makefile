@@ -1,0 +1,35 @@
+# The README's commands. Everything a command needs is installed by scripts/install-deps.sh.
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc)
+DEMO_DIR ?= out/demo
+
+.PHONY: deps configure build demo test bench clean
+
+deps:
+	./scripts/install-deps.sh
+
+configure: deps
+	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release
+
+build: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+# The main job on a built-in synthetic capture: 4 Kinect-like cameras around a walking, waving person.
+demo: build
+	rm -rf $(DEMO_DIR)
+	mkdir -p $(dir $(DEMO_DIR))
+	$(BUILD_DIR)/zipfusion synth --out $(DEMO_DIR)/capture --frames 30 --cameras 4 --miscalibrate 0.5,0.01
+	$(BUILD_DIR)/zipfusion info $(DEMO_DIR)/capture
+	@echo
+	@echo "demo results:"
+	@echo "  capture (rig.json, cam*/depth, cam*/color): $(abspath $(DEMO_DIR)/capture)"
+	@echo "  ground truth (true poses, true meshes):     $(abspath $(DEMO_DIR)/capture/ground_truth)"
+
+test: build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+
+bench: build
+	$(BUILD_DIR)/zf_micro_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+
+clean:
+	rm -rf $(BUILD_DIR) out

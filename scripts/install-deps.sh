@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs every Debian package that zipfusion's build, tests and benchmarks need.
+# Idempotent: packages already present are skipped, and apt is only asked when something is missing.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev                      # small fixed-size maths
+  libopencv-dev                      # PNG/JPEG decoding, image ops, calibration
+  nlohmann-json3-dev                 # rig.json, stats.json
+  libcli11-dev                       # command line
+  libgtest-dev libgmock-dev          # tests
+  libbenchmark-dev                   # micro-benchmarks
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,56 @@
+#pragma once
+//! \file
+//! Pinhole camera with optional OpenCV radial-tangential distortion (k1, k2, p1, p2, k3).
+//! Axes as OpenCV: x right, y down, z forward; pixel centres at integer coordinates.
+//! Projection functions are plain inline element functions (no allocation, no exceptions) so a
+//! CUDA port can call them as they are.
+
+#include <Eigen/Core>
+#include <array>
+
+namespace zipfusion {
+
+struct Intrinsics {
+  int width = 0;    // pixels
+  int height = 0;   // pixels
+  double fx = 0;    // focal length, pixels
+  double fy = 0;    // focal length, pixels
+  double cx = 0;    // principal point, pixels
+  double cy = 0;    // principal point, pixels
+  std::array<double, 5> distortion{};  // k1 k2 p1 p2 k3 (OpenCV order); all zero = none
+  bool has_distortion = false;         // whether rig.json gave "distortion"
+
+  friend bool operator==(const Intrinsics&, const Intrinsics&) = default;
+};
+
+//! Normalised image coordinates (x/z, y/z) → distorted normalised coordinates.
+inline Eigen::Vector2d distort(const Intrinsics& k, const Eigen::Vector2d& xy) {
+  const auto& d = k.distortion;
+  const double x = xy.x(), y = xy.y();
+  const double r2 = x * x + y * y;
+  const double radial = 1 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
+  return {x * radial + 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x),
+          y * radial + d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y};
+}
+
+//! Pixel of a point in the camera frame. Precondition: p.z() > 0. Distortion applied when present.
+inline Eigen::Vector2d project(const Intrinsics& k, const Eigen::Vector3d& p_in_cam) {
+  Eigen::Vector2d xy(p_in_cam.x() / p_in_cam.z(), p_in_cam.y() / p_in_cam.z());
+  if (k.has_distortion) xy = distort(k, xy);
+  return {k.fx * xy.x() + k.cx, k.fy * xy.y() + k.cy};
+}
+
+//! Float fast path without distortion, for per-pixel kernels.
+inline Eigen::Vector2f project_pinhole(const Intrinsics& k, const Eigen::Vector3f& p_in_cam) {
+  return {static_cast<float>(k.fx) * p_in_cam.x() / p_in_cam.z() + static_cast<float>(k.cx),
+          static_cast<float>(k.fy) * p_in_cam.y() / p_in_cam.z() + static_cast<float>(k.cy)};
+}
+
+//! Point in the camera frame at pixel (u, v) with depth z along the optical axis (undistorted
+//! pinhole: depth cameras deliver undistorted depth maps).
+inline Eigen::Vector3f unproject(const Intrinsics& k, float u, float v, float z) {
+  return {(u - static_cast<float>(k.cx)) * z / static_cast<float>(k.fx),
+          (v - static_cast<float>(k.cy)) * z / static_cast<float>(k.fy), z};
+}
+
+}  // namespace zipfusion

@@ -1,0 +1,25 @@
+#pragma once
+//! \file
+//! TriangleMesh: structure of arrays (positions, optional per-vertex colours, triangles).
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "zipfusion/core/image.h"
+
+namespace zipfusion {
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3f> positions;  // metres
+  std::vector<Rgb8> colors;                // empty, or one per position
+  std::vector<Eigen::Vector3i> triangles;  // indices into positions, counter-clockwise = outward
+
+  bool has_colors() const { return !colors.empty(); }
+  size_t vertex_count() const { return positions.size(); }
+  size_t triangle_count() const { return triangles.size(); }
+
+  //! Appends `other`, shifting its indices. Both must agree on having colours, or this is empty.
+  void append(const TriangleMesh& other);
+};
+
+}  // namespace zipfusion
