@@ -1,0 +1,184 @@
+#include "zipfusion/io/capture.h"
+
+#include <algorithm>
+#include <cassert>
+#include <tuple>
+#include <cstdio>
+#include <system_error>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/image_io.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Frame index of "000042.png"-style names with one of the given extensions, or -1.
+int frame_index_of(const fs::path& file, std::initializer_list<const char*> extensions) {
+  const std::string stem = file.stem().string();
+  const std::string ext = file.extension().string();
+  bool ext_ok = false;
+  for (const char* e : extensions) ext_ok = ext_ok || ext == e;
+  if (!ext_ok || stem.size() != 6) return -1;
+  int index = 0;
+  for (char c : stem) {
+    if (c < '0' || c > '9') return -1;
+    index = index * 10 + (c - '0');
+  }
+  return index;
+}
+
+void check_size(const std::string& file, int width, int height, const Intrinsics& k, const std::string& field) {
+  if (width != k.width || height != k.height) {
+    throw InvalidInput(file + ": size " + std::to_string(width) + "x" + std::to_string(height) + " does not match rig.json " +
+                       field + " " + std::to_string(k.width) + "x" + std::to_string(k.height));
+  }
+}
+
+void check_same_cameras(const Rig& rig, const Rig& truth, const std::string& truth_file) {
+  if (truth.cameras.size() != rig.cameras.size()) {
+    throw InvalidInput(truth_file + ": cameras: has " + std::to_string(truth.cameras.size()) + " cameras, rig.json has " +
+                       std::to_string(rig.cameras.size()));
+  }
+  for (size_t i = 0; i < rig.cameras.size(); ++i) {
+    if (truth.cameras[i].name != rig.cameras[i].name) {
+      throw InvalidInput(truth_file + ": cameras[" + std::to_string(i) + "].name: \"" + truth.cameras[i].name +
+                         "\" differs from rig.json's \"" + rig.cameras[i].name + "\"");
+    }
+  }
+}
+
+}  // namespace
+
+std::string frame_file_name(int frame, const std::string& extension) {
+  char name[32];
+  std::snprintf(name, sizeof name, "%06d", frame);
+  return name + extension;
+}
+
+Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw IoError(dir.string() + ": not a capture folder (no such directory)");
+  const fs::path rig_path = dir / "rig.json";
+  if (!fs::exists(rig_path, ec)) throw IoError(rig_path.string() + ": missing (every capture has a rig.json)");
+
+  Capture capture;
+  capture.dir_ = dir;
+  capture.options_ = options;
+  capture.rig_ = read_rig(rig_path);
+  const Rig& rig = capture.rig_;
+  const int frames = rig.frame_count;
+
+  int last_frame_seen = -1;
+  capture.color_extension_.resize(rig.cameras.size());
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    const CameraModel& camera = rig.cameras[c];
+    const fs::path depth_dir = dir / camera.name / "depth";
+    if (!fs::is_directory(depth_dir, ec)) {
+      throw InvalidInput(depth_dir.string() + ": missing folder for rig.json cameras[" + std::to_string(c) + "] (\"" +
+                         camera.name + "\")");
+    }
+    std::vector<bool> has_depth(frames, false);
+    for (const fs::directory_entry& entry : fs::directory_iterator(depth_dir)) {
+      const int index = frame_index_of(entry.path(), {".png"});
+      if (index < 0) continue;
+      if (index >= frames) {
+        throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
+                           (fs::path(camera.name) / "depth" / entry.path().filename()).string() + " exists");
+      }
+      has_depth[index] = true;
+      last_frame_seen = std::max(last_frame_seen, index);
+    }
+    std::vector<std::string>& color_ext = capture.color_extension_[c];
+    color_ext.assign(frames, "");
+    const fs::path color_dir = dir / camera.name / "color";
+    if (camera.has_color() && fs::is_directory(color_dir, ec)) {
+      for (const fs::directory_entry& entry : fs::directory_iterator(color_dir)) {
+        const int index = frame_index_of(entry.path(), {".jpg", ".png"});
+        if (index < 0) continue;
+        if (index >= frames) {
+          throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
+                             (fs::path(camera.name) / "color" / entry.path().filename()).string() + " exists");
+        }
+        color_ext[index] = entry.path().extension().string();
+      }
+    }
+    for (int f = 0; f < frames; ++f) {
+      if (!has_depth[f]) capture.missing_.push_back({static_cast<int>(c), f, false});
+      if (camera.has_color() && color_ext[f].empty()) capture.missing_.push_back({static_cast<int>(c), f, true});
+    }
+  }
+  if (frames > 0 && last_frame_seen != frames - 1) {
+    throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but no camera has frame " +
+                       frame_file_name(frames - 1, ".png") +
+                       (last_frame_seen < 0 ? " (no depth frames at all)" : " (last depth frame is " + frame_file_name(last_frame_seen, ".png") + ")"));
+  }
+  std::sort(capture.missing_.begin(), capture.missing_.end(), [](const MissingFrame& a, const MissingFrame& b) {
+    return std::tie(a.frame, a.camera, a.color) < std::tie(b.frame, b.camera, b.color);
+  });
+  if (options.strict && !capture.missing_.empty()) {
+    const MissingFrame& m = capture.missing_.front();
+    const fs::path file = m.color ? dir / rig.cameras[m.camera].name / "color" / frame_file_name(m.frame, ".jpg")
+                                  : capture.depth_path(m.frame, m.camera);
+ throw InvalidInput(file.string() + (m.color ? " (or .png)" : "") + ": missing frame (" + std::to_string(capture.missing_.size()) + " frame files missing in all)");
+  }
+
+  const fs::path truth_rig_path = dir / "ground_truth" / "rig.json";
+  if (fs::exists(truth_rig_path, ec)) {
+    capture.ground_truth_rig_ = read_rig(truth_rig_path);
+    check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
+  }
+  capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
+  return capture;
+}
+
+fs::path Capture::ground_truth_mesh_path(int frame) const {
+  return dir_ / "ground_truth" / "mesh" / frame_file_name(frame, ".ply");
+}
+
+fs::path Capture::depth_path(int frame, int camera) const {
+  return dir_ / rig_.cameras.at(camera).name / "depth" / frame_file_name(frame, ".png");
+}
+
+fs::path Capture::color_path(int frame, int camera) const {
+  const std::string& ext = color_extension_.at(camera).at(frame);
+  if (ext.empty()) return {};
+  return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, ext);
+}
+
+CameraFrame Capture::load_camera_frame(int frame, int camera) const {
+  assert(frame >= 0 && frame < frame_count() && camera >= 0 && camera < camera_count());
+  const CameraModel& model = rig_.cameras[camera];
+  CameraFrame out;
+  std::error_code ec;
+  const fs::path depth_file = depth_path(frame, camera);
+  if (fs::exists(depth_file, ec)) {
+    out.depth = read_depth_png(depth_file);
+    check_size(depth_file.string(), out.depth.width, out.depth.height, model.depth_intrinsics, "depth_intrinsics");
+    out.has_depth = true;
+  } else if (options_.strict) {
+    throw InvalidInput(depth_file.string() + ": missing frame");
+  }
+  if (model.has_color()) {
+    const fs::path color_file = color_path(frame, camera);
+    if (!color_file.empty() && fs::exists(color_file, ec)) {
+      out.color = read_color_image(color_file);
+      check_size(color_file.string(), out.color.width, out.color.height, *model.color_intrinsics, "color_intrinsics");
+      out.has_color = true;
+    } else if (options_.strict) {
+      throw InvalidInput((dir_ / model.name / "color" / frame_file_name(frame, ".jpg")).string() + ": missing frame");
+    }
+  }
+  return out;
+}
+
+FrameSet Capture::load_frame(int frame) const {
+  FrameSet set;
+  set.index = frame;
+  set.cameras.reserve(rig_.cameras.size());
+  for (int c = 0; c < camera_count(); ++c) set.cameras.push_back(load_camera_frame(frame, c));
+  return set;
+}
+
+}  // namespace zipfusion

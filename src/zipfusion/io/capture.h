@@ -1,0 +1,86 @@
+#pragma once
+//! \file
+//! A rig capture on disk (`zipfusion.rig/1`): a folder with rig.json, per-camera depth and colour
+//! frames and optional ground truth. Opening reads and validates rig.json and the folder listing;
+//! frames are decoded lazily, one at a time.
+//!
+//! Missing frames: a camera whose frame file is absent (a dropped frame, a camera that died
+//! mid-sequence) degrades that frame set rather than the run: load_frame() marks the camera as
+//! having no depth (or colour). With `strict`, any missing frame is an error instead.
+//! Thread safety: a Capture is immutable after open(); load_* may be called concurrently.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zipfusion/core/image.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+
+struct CaptureOpenOptions {
+  bool strict = false;  // a missing depth or colour frame is an error, not a hole
+};
+
+//! One camera's images of one frame.
+struct CameraFrame {
+  bool has_depth = false;
+  DepthImage depth;  // raw units of Rig::depth_unit_m, 0 = no measurement
+  bool has_color = false;
+  ColorImage color;
+};
+
+//! All cameras' images of one frame, in rig order.
+struct FrameSet {
+  int index = 0;
+  std::vector<CameraFrame> cameras;
+};
+
+//! A frame file that the rig promises but the folder lacks.
+struct MissingFrame {
+  int camera = 0;
+  int frame = 0;
+  bool color = false;  // false: the depth frame is missing
+};
+
+class Capture {
+ public:
+  //! Throws InvalidInput (rig.json fields, folder layout, frame_count mismatch) or IoError.
+  static Capture open(const std::filesystem::path& dir, const CaptureOpenOptions& options = {});
+
+  const std::filesystem::path& dir() const { return dir_; }
+  const Rig& rig() const { return rig_; }
+  int frame_count() const { return rig_.frame_count; }
+  int camera_count() const { return static_cast<int>(rig_.cameras.size()); }
+  const std::vector<MissingFrame>& missing_frames() const { return missing_; }
+
+  //! ground_truth/rig.json when present (validated against the main rig: same cameras).
+  const std::optional<Rig>& ground_truth_rig() const { return ground_truth_rig_; }
+  bool has_ground_truth_meshes() const { return has_ground_truth_meshes_; }
+  std::filesystem::path ground_truth_mesh_path(int frame) const;
+
+  std::filesystem::path depth_path(int frame, int camera) const;
+  //! The colour file of that frame (.jpg or .png), or an empty path when there is none.
+  std::filesystem::path color_path(int frame, int camera) const;
+
+  //! Decodes one camera's frame. Throws InvalidInput for a corrupt file or one whose size or bit
+  //! depth does not match rig.json; a missing file leaves has_depth/has_color false (or throws
+  //! when opened strict).
+  CameraFrame load_camera_frame(int frame, int camera) const;
+  FrameSet load_frame(int frame) const;
+
+ private:
+  std::filesystem::path dir_;
+  Rig rig_;
+  CaptureOpenOptions options_;
+  std::optional<Rig> ground_truth_rig_;
+  bool has_ground_truth_meshes_ = false;
+  std::vector<MissingFrame> missing_;
+  std::vector<std::vector<std::string>> color_extension_;  // [camera][frame]: ".jpg", ".png" or ""
+};
+
+//! Frame file name: 6-digit zero-padded index plus extension ("000042.png").
+std::string frame_file_name(int frame, const std::string& extension);
+
+}  // namespace zipfusion

@@ -1,0 +1,218 @@
+#include "zipfusion/io/capture.h"
+
+#include <gtest/gtest.h>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+#include "zipfusion/io/image_io.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSharedData = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data";
+
+DepthImage ramp_depth(int width, int height, int frame) {
+  DepthImage d(width, height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) d(u, v) = static_cast<unsigned short>((u + v) % 7 == 0 ? 0 : 1000 + 10 * u + v + frame);
+  }
+  return d;
+}
+
+ColorImage pattern_color(int width, int height, int frame) {
+  ColorImage c(width, height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) c(u, v) = {static_cast<unsigned char>(u * 7), static_cast<unsigned char>(v * 9), static_cast<unsigned char>(frame * 40)};
+  }
+  return c;
+}
+
+// A small two-camera capture: "a" with colour (PNG, lossless), "b" depth only.
+class SmallCapture : public ::testing::Test {
+ protected:
+  static constexpr int kWidth = 32, kHeight = 24, kFrames = 3;
+  fs::path dir_ = fs::temp_directory_path() / ("zf_capture_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+
+  void SetUp() override {
+    fs::remove_all(dir_);
+    rig_.frame_count = kFrames;
+    CameraModel a;
+    a.name = "a";
+    a.depth_intrinsics = {.width = kWidth, .height = kHeight, .fx = 30, .fy = 30, .cx = 15.5, .cy = 11.5};
+    a.color_intrinsics = a.depth_intrinsics;
+    CameraModel b = a;
+    b.name = "b";
+    b.color_intrinsics.reset();
+    rig_.cameras = {a, b};
+    for (const CameraModel& cam : rig_.cameras) fs::create_directories(dir_ / cam.name / "depth");
+    fs::create_directories(dir_ / "a" / "color");
+    for (int f = 0; f < kFrames; ++f) {
+      for (const CameraModel& cam : rig_.cameras) write_depth_png(dir_ / cam.name / "depth" / frame_file_name(f, ".png"), ramp_depth(kWidth, kHeight, f));
+      write_color_image(dir_ / "a" / "color" / frame_file_name(f, ".png"), pattern_color(kWidth, kHeight, f));
+    }
+    write_rig(dir_ / "rig.json", rig_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string open_error(const CaptureOpenOptions& options = {}) {
+    try {
+      Capture::open(dir_, options);
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "no error";
+  }
+  std::string load_error(int frame, int camera) {
+    try {
+      Capture::open(dir_).load_camera_frame(frame, camera);
+    } catch (const InvalidInput& e) {
+      return e.what();
+    }
+    return "no error";
+  }
+
+  Rig rig_;
+};
+
+TEST_F(SmallCapture, LoadsWhatWasWritten) {
+  const Capture capture = Capture::open(dir_);
+  EXPECT_EQ(capture.frame_count(), kFrames);
+  EXPECT_TRUE(capture.missing_frames().empty());
+  for (int f = 0; f < kFrames; ++f) {
+    const FrameSet set = capture.load_frame(f);
+    ASSERT_EQ(set.cameras.size(), 2u);
+    EXPECT_TRUE(set.cameras[0].has_depth);
+    EXPECT_EQ(set.cameras[0].depth, ramp_depth(kWidth, kHeight, f));
+    EXPECT_TRUE(set.cameras[0].has_color);
+    EXPECT_EQ(set.cameras[0].color, pattern_color(kWidth, kHeight, f));
+    EXPECT_TRUE(set.cameras[1].has_depth);
+    EXPECT_FALSE(set.cameras[1].has_color);
+  }
+}
+
+TEST_F(SmallCapture, MissingFrameDegradesOrFailsWhenStrict) {
+  fs::remove(dir_ / "b" / "depth" / "000001.png");
+  fs::remove(dir_ / "a" / "color" / "000002.png");
+  const Capture capture = Capture::open(dir_);
+  ASSERT_EQ(capture.missing_frames().size(), 2u);
+  const FrameSet set1 = capture.load_frame(1);
+  EXPECT_TRUE(set1.cameras[0].has_depth);
+  EXPECT_FALSE(set1.cameras[1].has_depth);
+  const FrameSet set2 = capture.load_frame(2);
+  EXPECT_TRUE(set2.cameras[0].has_depth);
+  EXPECT_FALSE(set2.cameras[0].has_color);
+
+  const std::string error = open_error({.strict = true});
+  EXPECT_NE(error.find((dir_ / "b" / "depth" / "000001.png").string()), std::string::npos) << error;
+  EXPECT_NE(error.find("missing frame"), std::string::npos) << error;
+}
+
+TEST_F(SmallCapture, DeadCameraMidSequenceStillOpens) {
+  fs::remove(dir_ / "b" / "depth" / "000001.png");
+  fs::remove(dir_ / "b" / "depth" / "000002.png");
+  const Capture capture = Capture::open(dir_);
+  EXPECT_FALSE(capture.load_frame(2).cameras[1].has_depth);
+  EXPECT_TRUE(capture.load_frame(2).cameras[0].has_depth);
+}
+
+TEST_F(SmallCapture, FrameCountMismatchIsAnError) {
+  write_depth_png(dir_ / "a" / "depth" / "000003.png", ramp_depth(kWidth, kHeight, 3));
+  std::string error = open_error();
+  EXPECT_NE(error.find("rig.json: frame_count: is 3 but a/depth/000003.png exists"), std::string::npos) << error;
+
+  fs::remove(dir_ / "a" / "depth" / "000003.png");
+  rig_.frame_count = 5;
+  write_rig(dir_ / "rig.json", rig_);
+  error = open_error();
+  EXPECT_NE(error.find("frame_count: is 5 but no camera has frame 000004.png"), std::string::npos) << error;
+}
+
+TEST_F(SmallCapture, WrongSizeIsNamed) {
+  write_depth_png(dir_ / "b" / "depth" / "000001.png", ramp_depth(kWidth + 1, kHeight, 1));
+  const std::string error = load_error(1, 1);
+  EXPECT_NE(error.find((dir_ / "b" / "depth" / "000001.png").string()), std::string::npos) << error;
+  EXPECT_NE(error.find("size 33x24 does not match rig.json depth_intrinsics 32x24"), std::string::npos) << error;
+
+  write_color_image(dir_ / "a" / "color" / "000000.png", pattern_color(kWidth, kHeight + 2, 0));
+  const std::string color_error = load_error(0, 0);
+  EXPECT_NE(color_error.find("color_intrinsics"), std::string::npos) << color_error;
+}
+
+TEST_F(SmallCapture, WrongBitDepthIsNamed) {
+  // An 8-bit grey PNG where a 16-bit depth map belongs.
+  write_color_image(dir_ / "a" / "depth" / "000000.png", pattern_color(kWidth, kHeight, 0));
+  const std::string error = load_error(0, 0);
+  EXPECT_NE(error.find((dir_ / "a" / "depth" / "000000.png").string()), std::string::npos) << error;
+  EXPECT_NE(error.find("bit depth: depth PNG must be 16-bit single-channel, got 8-bit with 3 channel(s)"), std::string::npos) << error;
+}
+
+TEST_F(SmallCapture, CorruptAndTruncatedFilesAreNamed) {
+  std::vector<std::uint8_t> bytes = read_file_bytes(dir_ / "a" / "depth" / "000002.png");
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(dir_ / "a" / "depth" / "000002.png", bytes);
+  std::string error = load_error(2, 0);
+  EXPECT_NE(error.find("a/depth/000002.png"), std::string::npos) << error;
+
+  write_file_atomic(dir_ / "b" / "depth" / "000002.png", std::string_view("not a png at all"));
+  error = load_error(2, 1);
+  EXPECT_NE(error.find("b/depth/000002.png: not a PNG file"), std::string::npos) << error;
+
+  write_file_atomic(dir_ / "a" / "color" / "000001.png", std::string_view("\x89PNG\r\n\x1a\ngarbage"));
+  error = load_error(1, 0);
+  EXPECT_NE(error.find("a/color/000001.png: cannot decode image"), std::string::npos) << error;
+}
+
+TEST_F(SmallCapture, LayoutErrorsAreNamed) {
+  fs::remove_all(dir_ / "b");
+  std::string error = open_error();
+  EXPECT_NE(error.find("b/depth: missing folder for rig.json cameras[1]"), std::string::npos) << error;
+
+  fs::remove(dir_ / "rig.json");
+  error = open_error();
+  EXPECT_NE(error.find("rig.json: missing"), std::string::npos) << error;
+}
+
+TEST_F(SmallCapture, GroundTruthRigMustMatchCameras) {
+  fs::create_directories(dir_ / "ground_truth");
+  Rig truth = rig_;
+  truth.cameras[1].name = "c";
+  write_rig(dir_ / "ground_truth" / "rig.json", truth);
+  const std::string error = open_error();
+  EXPECT_NE(error.find("ground_truth/rig.json: cameras[1].name"), std::string::npos) << error;
+}
+
+// Every capture in ../shared/data follows the format and loads.
+TEST(SharedData, EveryCaptureLoads) {
+  ASSERT_TRUE(fs::is_directory(kSharedData)) << kSharedData;
+  int captures = 0;
+  for (const fs::directory_entry& entry : fs::directory_iterator(kSharedData)) {
+    if (!fs::exists(entry.path() / "rig.json")) continue;
+    ++captures;
+    const Capture capture = Capture::open(entry.path(), {.strict = true});
+    ASSERT_GT(capture.frame_count(), 0) << entry.path();
+    for (int frame : {0, capture.frame_count() - 1}) {
+      const FrameSet set = capture.load_frame(frame);
+      for (int c = 0; c < capture.camera_count(); ++c) {
+        const CameraModel& cam = capture.rig().cameras[c];
+        const CameraFrame& f = set.cameras[c];
+        ASSERT_TRUE(f.has_depth);
+        EXPECT_EQ(f.depth.width, cam.depth_intrinsics.width);
+        size_t valid = 0;
+        for (unsigned short d : f.depth.data) valid += d != 0;
+        EXPECT_GT(valid, f.depth.size() / 20) << entry.path() << " frame " << frame << " has almost no depth";
+        EXPECT_EQ(f.has_color, cam.has_color());
+      }
+    }
+  }
+  EXPECT_EQ(captures, 3);
+  const Capture samba = Capture::open(kSharedData / "samba-4cam");
+  ASSERT_TRUE(samba.ground_truth_rig().has_value());
+  EXPECT_TRUE(samba.has_ground_truth_meshes());
+  EXPECT_EQ(samba.camera_count(), 4);
+  EXPECT_EQ(samba.frame_count(), 40);
+}
+
+}  // namespace
+}  // namespace zipfusion

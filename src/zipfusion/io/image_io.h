@@ -1,0 +1,32 @@
+#pragma once
+//! \file
+//! Depth and colour image files of a rig capture, decoded and encoded by OpenCV. Decoding checks
+//! what the format promises (16-bit single-channel depth PNG; 8-bit colour JPEG/PNG) and throws
+//! InvalidInput naming the file and what is wrong, or IoError when the file cannot be read.
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "zipfusion/core/image.h"
+
+namespace zipfusion {
+
+//! Decodes a 16-bit single-channel PNG. `source` names the file in errors.
+DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source);
+DepthImage read_depth_png(const std::filesystem::path& path);
+
+//! Decodes an 8-bit colour JPEG or PNG (grey images are expanded to RGB).
+ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std::string& source);
+ColorImage read_color_image(const std::filesystem::path& path);
+
+std::vector<std::uint8_t> encode_depth_png(const DepthImage& depth);
+//! Encodes as JPEG (quality 1..100) or PNG, chosen by `extension` (".jpg", ".jpeg" or ".png").
+std::vector<std::uint8_t> encode_color_image(const ColorImage& color, const std::string& extension,
+                                             int jpeg_quality = 90);
+
+//! Atomic writers (temporary file + rename).
+void write_depth_png(const std::filesystem::path& path, const DepthImage& depth);
+void write_color_image(const std::filesystem::path& path, const ColorImage& color, int jpeg_quality = 90);
+
+}  // namespace zipfusion

@@ -1,0 +1,229 @@
+#include "zipfusion/io/rig.h"
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+
+namespace zipfusion {
+namespace {
+
+using nlohmann::json;
+
+// Reads fields of one JSON object, naming "source: path.to.field" in every error.
+class Fields {
+ public:
+  Fields(const json& object, std::string source, std::string path)
+      : object_(object), source_(std::move(source)), path_(std::move(path)) {
+    if (!object_.is_object()) fail(path_, "must be an object");
+  }
+
+  [[noreturn]] void fail(const std::string& field, const std::string& problem) const {
+    throw InvalidInput(source_ + ": " + field + ": " + problem);
+  }
+  std::string field(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  bool has(const std::string& key) const { return object_.contains(key); }
+
+  const json& required(const std::string& key) const {
+    if (!object_.contains(key)) fail(field(key), "missing required key");
+    return object_.at(key);
+  }
+
+  double number(const std::string& key) const {
+    const json& v = required(key);
+    if (!v.is_number()) fail(field(key), "must be a number");
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) fail(field(key), "must be finite");
+    return d;
+  }
+  double positive(const std::string& key) const {
+    const double d = number(key);
+    if (d <= 0) fail(field(key), "must be positive, got " + required(key).dump());
+    return d;
+  }
+  int integer(const std::string& key, int min_value) const {
+    const json& v = required(key);
+    if (!v.is_number_integer()) fail(field(key), "must be an integer, got " + v.dump());
+    const long long i = v.get<long long>();
+    if (i < min_value || i > 1'000'000'000) {
+      fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + v.dump());
+    }
+    return static_cast<int>(i);
+  }
+  std::string string(const std::string& key) const {
+    const json& v = required(key);
+    if (!v.is_string()) fail(field(key), "must be a string");
+    return v.get<std::string>();
+  }
+  Fields object(const std::string& key) const { return Fields(required(key), source_, field(key)); }
+  const std::string& source() const { return source_; }
+
+  std::vector<double> numbers(const json& v, const std::string& field_name, size_t count) const {
+    if (!v.is_array() || v.size() != count) fail(field_name, "must be an array of " + std::to_string(count) + " numbers");
+    std::vector<double> out;
+    for (const json& e : v) {
+      if (!e.is_number() || !std::isfinite(e.get<double>())) fail(field_name, "must hold finite numbers only");
+      out.push_back(e.get<double>());
+    }
+    return out;
+  }
+
+ private:
+  const json& object_;
+  std::string source_;
+  std::string path_;
+};
+
+Intrinsics parse_intrinsics(const Fields& f) {
+  Intrinsics k;
+  k.width = f.integer("width", 1);
+  k.height = f.integer("height", 1);
+  k.fx = f.positive("fx");
+  k.fy = f.positive("fy");
+  k.cx = f.number("cx");
+  k.cy = f.number("cy");
+  if (f.has("distortion")) {
+    const std::vector<double> d = f.numbers(f.required("distortion"), f.field("distortion"), 5);
+    std::copy(d.begin(), d.end(), k.distortion.begin());
+    k.has_distortion = true;
+  }
+  return k;
+}
+
+Rigid3d parse_rigid(const Fields& parent, const std::string& key) {
+  const json& v = parent.required(key);
+  const std::string field = parent.field(key);
+  if (!v.is_array() || v.size() != 4) parent.fail(field, "must be a 4x4 array of rows");
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r) {
+    const std::vector<double> row = parent.numbers(v[r], field + "[" + std::to_string(r) + "]", 4);
+    for (int c = 0; c < 4; ++c) m(r, c) = row[c];
+  }
+  if (!is_rigid(m)) {
+    parent.fail(field, "is not a rigid transform (rotation must be orthonormal with det +1, last row 0 0 0 1)");
+  }
+  // Exactly orthonormal input is kept bit for bit (exact round trips); rounded input is repaired.
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12) return Rigid3d(m);
+  return nearest_rigid(m);
+}
+
+bool is_safe_folder_name(const std::string& name) {
+  if (name.empty() || name == "." || name == ".." || name == "ground_truth") return false;
+  return name.find_first_of("/\\") == std::string::npos && name.find('\0') == std::string::npos;
+}
+
+nlohmann::ordered_json intrinsics_json(const Intrinsics& k) {
+  nlohmann::ordered_json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
+  if (k.has_distortion) j["distortion"] = k.distortion;
+  return j;
+}
+
+std::string matrix_json(const Rigid3d& t) {
+  const Eigen::Matrix4d m = t.matrix();
+  std::string s = "[";
+  for (int r = 0; r < 4; ++r) {
+    json row = json::array();
+    for (int c = 0; c < 4; ++c) row.push_back(m(r, c));
+    s += (r ? ", " : "") + row.dump();
+  }
+  return s + "]";
+}
+
+}  // namespace
+
+int Rig::camera_index(const std::string& name) const {
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    if (cameras[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Rig parse_rig(const std::string& json_text, const std::string& source) {
+  json root;
+  try {
+    root = json::parse(json_text);
+  } catch (const json::parse_error& e) {
+    throw InvalidInput(source + ": not valid JSON: " + e.what());
+  }
+  const Fields top(root, source, "");
+  const std::string format = top.string("format");
+  if (format != kRigFormat) top.fail("format", "must be \"" + std::string(kRigFormat) + "\", got \"" + format + "\"");
+
+  Rig rig;
+  rig.fps = top.positive("fps");
+  rig.frame_count = top.integer("frame_count", 0);
+  if (top.has("depth_unit_m")) rig.depth_unit_m = top.positive("depth_unit_m");
+  if (top.has("volume")) {
+    const Fields volume = top.object("volume");
+    const std::vector<double> lo = top.numbers(volume.required("min"), "volume.min", 3);
+    const std::vector<double> hi = top.numbers(volume.required("max"), "volume.max", 3);
+    Box3d box{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+    if (!(box.min.array() < box.max.array()).all()) top.fail("volume", "min must be below max on every axis");
+    rig.volume = box;
+  }
+
+  const json& cameras = top.required("cameras");
+  if (!cameras.is_array() || cameras.empty()) top.fail("cameras", "must be a non-empty array");
+  std::set<std::string> names;
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const Fields cam(cameras[i], source, "cameras[" + std::to_string(i) + "]");
+    CameraModel model;
+    model.name = cam.string("name");
+    if (!is_safe_folder_name(model.name)) cam.fail(cam.field("name"), "\"" + model.name + "\" is not a usable folder name");
+    if (!names.insert(model.name).second) cam.fail(cam.field("name"), "\"" + model.name + "\" is used by two cameras");
+    model.depth_intrinsics = parse_intrinsics(cam.object("depth_intrinsics"));
+    const bool has_color_intrinsics = cam.has("color_intrinsics");
+    if (has_color_intrinsics != cam.has("color_from_depth")) {
+      cam.fail(cam.field(has_color_intrinsics ? "color_from_depth" : "color_intrinsics"),
+               "missing: color_intrinsics and color_from_depth come together");
+    }
+    if (has_color_intrinsics) {
+      model.color_intrinsics = parse_intrinsics(cam.object("color_intrinsics"));
+      model.color_from_depth = parse_rigid(cam, "color_from_depth");
+    }
+    model.world_from_depth = parse_rigid(cam, "world_from_depth");
+    rig.cameras.push_back(std::move(model));
+  }
+  return rig;
+}
+
+Rig read_rig(const std::filesystem::path& path) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  return parse_rig(std::string(bytes.begin(), bytes.end()), path.string());
+}
+
+std::string format_rig(const Rig& rig) {
+  std::ostringstream out;
+  out << "{\n";
+  out << "  \"format\": " << json(kRigFormat).dump() << ",\n";
+  out << "  \"fps\": " << json(rig.fps).dump() << ",\n";
+  out << "  \"frame_count\": " << rig.frame_count << ",\n";
+  out << "  \"depth_unit_m\": " << json(rig.depth_unit_m).dump() << ",\n";
+  if (rig.volume) {
+    const nlohmann::ordered_json volume = {{"min", {rig.volume->min.x(), rig.volume->min.y(), rig.volume->min.z()}},
+                         {"max", {rig.volume->max.x(), rig.volume->max.y(), rig.volume->max.z()}}};
+    out << "  \"volume\": " << volume.dump() << ",\n";
+  }
+  out << "  \"cameras\": [\n";
+  for (size_t i = 0; i < rig.cameras.size(); ++i) {
+    const CameraModel& cam = rig.cameras[i];
+    out << "    {\"name\": " << json(cam.name).dump() << ",\n";
+    out << "     \"depth_intrinsics\": " << intrinsics_json(cam.depth_intrinsics).dump() << ",\n";
+    if (cam.color_intrinsics) {
+      out << "     \"color_intrinsics\": " << intrinsics_json(*cam.color_intrinsics).dump() << ",\n";
+      out << "     \"color_from_depth\": " << matrix_json(cam.color_from_depth) << ",\n";
+    }
+    out << "     \"world_from_depth\": " << matrix_json(cam.world_from_depth) << "}";
+    out << (i + 1 < rig.cameras.size() ? ",\n" : "\n");
+  }
+  out << "  ]\n}\n";
+  return out.str();
+}
+
+void write_rig(const std::filesystem::path& path, const Rig& rig) { write_file_atomic(path, format_rig(rig)); }
+
+}  // namespace zipfusion

@@ -1,0 +1,52 @@
+#pragma once
+//! \file
+//! rig.json (`zipfusion.rig/1`, see docs/formats.md and ../shared/FORMATS.md): the cameras of a
+//! capture, their intrinsics and poses. Reading validates everything and throws InvalidInput
+//! ("FILE: FIELD: problem") or IoError; unknown keys are ignored.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zipfusion/core/camera.h"
+#include "zipfusion/core/geometry.h"
+
+namespace zipfusion {
+
+inline constexpr const char* kRigFormat = "zipfusion.rig/1";
+
+struct CameraModel {
+  std::string name;                           // also the camera's folder in the capture
+  Intrinsics depth_intrinsics;
+  std::optional<Intrinsics> color_intrinsics;  // absent: the camera has no colour
+  Rigid3d color_from_depth = Rigid3d::Identity();  // meaningful only with color_intrinsics
+  Rigid3d world_from_depth = Rigid3d::Identity();
+
+  bool has_color() const { return color_intrinsics.has_value(); }
+};
+
+struct Rig {
+  double fps = 30;                // frames per second
+  int frame_count = 0;            // frames per camera
+  double depth_unit_m = 0.001;    // metres per depth PNG unit
+  std::optional<Box3d> volume;    // capture volume in world coordinates, metres
+  std::vector<CameraModel> cameras;
+
+  //! Index of the camera with that name, or -1.
+  int camera_index(const std::string& name) const;
+};
+
+//! Parses rig.json text; `source` names the file in error messages.
+Rig parse_rig(const std::string& json_text, const std::string& source);
+
+//! Reads and validates a rig.json file.
+Rig read_rig(const std::filesystem::path& path);
+
+//! rig.json text: one camera per block, matrices one row per line; numbers round-trip exactly.
+std::string format_rig(const Rig& rig);
+
+//! Writes rig.json atomically.
+void write_rig(const std::filesystem::path& path, const Rig& rig);
+
+}  // namespace zipfusion

@@ -1,0 +1,158 @@
+#include "zipfusion/io/rig.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+Rig example_rig() {
+  Rig rig;
+  rig.fps = 30;
+  rig.frame_count = 12;
+  rig.depth_unit_m = 0.0005;
+  rig.volume = Box3d{{-1, -1.5, 0.02}, {1, 1.5, 2.2}};
+  CameraModel cam;
+  cam.name = "left";
+  cam.depth_intrinsics = {.width = 640, .height = 480, .fx = 580.5, .fy = 579.25, .cx = 319.5, .cy = 239.5};
+  Intrinsics color{.width = 1280, .height = 960, .fx = 1050.125, .fy = 1050.5, .cx = 639.5, .cy = 479.5};
+  color.distortion = {0.12, -0.21, 0.001, -0.0005, 0.07};
+  color.has_distortion = true;
+  cam.color_intrinsics = color;
+  cam.color_from_depth.translation() = Eigen::Vector3d(-0.025, 0.001, 0.0003);
+  cam.world_from_depth.linear() = Eigen::AngleAxisd(0.8, Eigen::Vector3d(0.2, -1, 0.3).normalized()).toRotationMatrix();
+  cam.world_from_depth.translation() = Eigen::Vector3d(1.2345678901234, -2, 1.3);
+  rig.cameras.push_back(cam);
+  CameraModel depth_only;
+  depth_only.name = "right";
+  depth_only.depth_intrinsics = {.width = 320, .height = 240, .fx = 290, .fy = 290, .cx = 160, .cy = 120};
+  depth_only.world_from_depth.translation() = Eigen::Vector3d(0, 2, 1);
+  rig.cameras.push_back(depth_only);
+  return rig;
+}
+
+class RigFile : public ::testing::Test {
+ protected:
+  fs::path dir_ = fs::temp_directory_path() / ("zf_rig_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  void SetUp() override { fs::create_directories(dir_); }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Writes the example rig with `edit` applied to its JSON and returns the error text of reading it.
+  std::string error_after(const std::function<void(json&)>& edit) {
+    json j = json::parse(format_rig(example_rig()));
+    edit(j);
+    const fs::path path = dir_ / "rig.json";
+    write_file_atomic(path, j.dump(1));
+    try {
+      read_rig(path);
+    } catch (const InvalidInput& e) {
+      return e.what();
+    }
+    return "no error";
+  }
+};
+
+TEST_F(RigFile, RoundTripIsExact) {
+  const Rig rig = example_rig();
+  write_rig(dir_ / "rig.json", rig);
+  const Rig back = read_rig(dir_ / "rig.json");
+  EXPECT_EQ(back.fps, rig.fps);
+  EXPECT_EQ(back.frame_count, rig.frame_count);
+  EXPECT_EQ(back.depth_unit_m, rig.depth_unit_m);
+  ASSERT_TRUE(back.volume.has_value());
+  EXPECT_EQ(back.volume->min, rig.volume->min);
+  EXPECT_EQ(back.volume->max, rig.volume->max);
+  ASSERT_EQ(back.cameras.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(back.cameras[i].name, rig.cameras[i].name);
+    EXPECT_EQ(back.cameras[i].depth_intrinsics, rig.cameras[i].depth_intrinsics);
+    EXPECT_EQ(back.cameras[i].color_intrinsics, rig.cameras[i].color_intrinsics);
+    EXPECT_NEAR((back.cameras[i].world_from_depth.matrix() - rig.cameras[i].world_from_depth.matrix()).cwiseAbs().maxCoeff(), 0, 1e-15);
+    EXPECT_NEAR((back.cameras[i].color_from_depth.matrix() - rig.cameras[i].color_from_depth.matrix()).cwiseAbs().maxCoeff(), 0, 1e-15);
+  }
+  EXPECT_FALSE(back.cameras[1].has_color());
+  // Writing what was read gives the same bytes.
+  EXPECT_EQ(format_rig(back), format_rig(rig));
+}
+
+TEST_F(RigFile, UnknownKeysAreIgnoredAndDefaultsApply) {
+  const std::string error = error_after([](json& j) {
+    j["comment"] = "made by hand";
+    j["cameras"][0]["serial"] = "A00362";
+    j.erase("depth_unit_m");
+    j.erase("volume");
+  });
+  EXPECT_EQ(error, "no error");
+  const Rig rig = read_rig(dir_ / "rig.json");
+  EXPECT_EQ(rig.depth_unit_m, 0.001);
+  EXPECT_FALSE(rig.volume.has_value());
+}
+
+struct BadCase {
+  const char* what;
+  std::function<void(json&)> edit;
+  const char* expected_field;
+};
+
+TEST_F(RigFile, EveryMalformedFieldIsNamed) {
+  const std::vector<BadCase> cases = {
+      {"missing format", [](json& j) { j.erase("format"); }, "format: missing required key"},
+      {"wrong format", [](json& j) { j["format"] = "zipfusion.rig/2"; }, "format: must be"},
+      {"missing fps", [](json& j) { j.erase("fps"); }, "fps: missing required key"},
+      {"zero fps", [](json& j) { j["fps"] = 0; }, "fps: must be positive"},
+      {"fractional frame_count", [](json& j) { j["frame_count"] = 2.5; }, "frame_count: must be an integer"},
+      {"negative frame_count", [](json& j) { j["frame_count"] = -1; }, "frame_count: must be an integer >= 0"},
+      {"string depth unit", [](json& j) { j["depth_unit_m"] = "mm"; }, "depth_unit_m: must be a number"},
+      {"inverted volume", [](json& j) { j["volume"]["max"][2] = -5; }, "volume: min must be below max"},
+      {"short volume", [](json& j) { j["volume"]["min"] = {1, 2}; }, "volume.min: must be an array of 3 numbers"},
+      {"no cameras", [](json& j) { j["cameras"] = json::array(); }, "cameras: must be a non-empty array"},
+      {"missing name", [](json& j) { j["cameras"][1].erase("name"); }, "cameras[1].name: missing required key"},
+      {"duplicate name", [](json& j) { j["cameras"][1]["name"] = "left"; }, "cameras[1].name: \"left\" is used by two cameras"},
+      {"unsafe name", [](json& j) { j["cameras"][0]["name"] = "../etc"; }, "cameras[0].name: \"../etc\" is not a usable folder name"},
+      {"missing intrinsics", [](json& j) { j["cameras"][0].erase("depth_intrinsics"); }, "cameras[0].depth_intrinsics: missing required key"},
+      {"negative focal", [](json& j) { j["cameras"][0]["depth_intrinsics"]["fx"] = -580; }, "cameras[0].depth_intrinsics.fx: must be positive"},
+      {"zero width", [](json& j) { j["cameras"][1]["depth_intrinsics"]["width"] = 0; }, "cameras[1].depth_intrinsics.width: must be an integer >= 1"},
+      {"short distortion", [](json& j) { j["cameras"][0]["color_intrinsics"]["distortion"] = {0.1, 0.2}; },
+       "cameras[0].color_intrinsics.distortion: must be an array of 5 numbers"},
+      {"colour pose without intrinsics", [](json& j) { j["cameras"][0].erase("color_intrinsics"); },
+       "cameras[0].color_intrinsics: missing: color_intrinsics and color_from_depth come together"},
+      {"scaled pose", [](json& j) { j["cameras"][0]["world_from_depth"][0][0] = 2.0; }, "cameras[0].world_from_depth: is not a rigid transform"},
+      {"mirrored pose", [](json& j) { j["cameras"][1]["world_from_depth"] = {{-1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}}; },
+       "cameras[1].world_from_depth: is not a rigid transform"},
+      {"projective last row", [](json& j) { j["cameras"][1]["world_from_depth"][3] = {0, 0, 0.1, 1}; },
+       "cameras[1].world_from_depth: is not a rigid transform"},
+      {"3x3 pose", [](json& j) { j["cameras"][1]["world_from_depth"] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}; },
+       "cameras[1].world_from_depth: must be a 4x4 array of rows"},
+      {"text in matrix", [](json& j) { j["cameras"][0]["color_from_depth"][1][2] = "0"; },
+       "cameras[0].color_from_depth[1]: must hold finite numbers only"},
+  };
+  for (const BadCase& c : cases) {
+    const std::string error = error_after(c.edit);
+    EXPECT_NE(error.find((dir_ / "rig.json").string()), std::string::npos) << c.what << ": " << error;
+    EXPECT_NE(error.find(c.expected_field), std::string::npos) << c.what << ": " << error;
+  }
+}
+
+TEST_F(RigFile, BrokenJsonAndMissingFileAreReported) {
+  write_file_atomic(dir_ / "rig.json", std::string_view("{\"format\": \"zipfusion.rig/1\", "));
+  try {
+    read_rig(dir_ / "rig.json");
+    FAIL() << "no error";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("rig.json: not valid JSON"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(read_rig(dir_ / "absent.json"), IoError);
+}
+
+}  // namespace
+}  // namespace zipfusion
