@@ -1,0 +1,63 @@
+// Micro-benchmarks of the capture I/O and synthesis kernels (Google Benchmark).
+
+#include <benchmark/benchmark.h>
+
+#include "zipfusion/io/image_io.h"
+#include "zipfusion/synth/rasterizer.h"
+#include "zipfusion/synth/synth.h"
+
+namespace zipfusion {
+namespace {
+
+struct Scene {
+  SynthOptions options;
+  Rig rig = make_ring_rig(options);
+  TriangleMesh subject = subject_mesh(options, 0);
+  SyntheticView view = render_view(subject, rig, 0, 0, options);
+};
+
+const Scene& scene() {
+  static const Scene s;
+  return s;
+}
+
+void BM_MakeHuman(benchmark::State& state) {
+  double t = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(make_human(t += 0.033));
+}
+BENCHMARK(BM_MakeHuman)->Unit(benchmark::kMillisecond);
+
+void BM_RasterizeSubject(benchmark::State& state) {
+  const Scene& s = scene();
+  const CameraModel& cam = s.rig.cameras[0];
+  RenderBuffers buffers;
+  for (auto _ : state) {
+    buffers.reset(cam.depth_intrinsics, false);
+    rasterize_mesh(s.subject, cam.depth_intrinsics, cam.world_from_depth.inverse(), buffers);
+    benchmark::DoNotOptimize(buffers.depth.data.data());
+  }
+}
+BENCHMARK(BM_RasterizeSubject)->Unit(benchmark::kMillisecond);
+
+void BM_RenderKinectView(benchmark::State& state) {
+  const Scene& s = scene();
+  for (auto _ : state) benchmark::DoNotOptimize(render_view(s.subject, s.rig, 0, 0, s.options));
+}
+BENCHMARK(BM_RenderKinectView)->Unit(benchmark::kMillisecond);
+
+void BM_DecodeDepthPng(benchmark::State& state) {
+  const std::vector<std::uint8_t> png = encode_depth_png(scene().view.depth);
+  for (auto _ : state) benchmark::DoNotOptimize(decode_depth_png(png, "bench"));
+}
+BENCHMARK(BM_DecodeDepthPng)->Unit(benchmark::kMillisecond);
+
+void BM_DecodeColorJpeg(benchmark::State& state) {
+  const std::vector<std::uint8_t> jpg = encode_color_image(scene().view.color, ".jpg", 90);
+  for (auto _ : state) benchmark::DoNotOptimize(decode_color_image(jpg, "bench"));
+}
+BENCHMARK(BM_DecodeColorJpeg)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace zipfusion
+
+BENCHMARK_MAIN();
