@@ -1,0 +1,109 @@
+// End-to-end tests of the zipfusion binary: exit codes, one-line errors, outputs.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "zipfusion/io/capture.h"
+#include "zipfusion/io/file_util.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  fs::path dir_ = fs::temp_directory_path() / ("zf_cli_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+  void SetUp() override { fs::remove_all(dir_); fs::create_directories(dir_); }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  CommandResult run(const std::string& args) {
+    const std::string command = std::string(ZF_BINARY) + " " + args + " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() + " < /dev/null";
+    const int status = std::system(command.c_str());
+    CommandResult r;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    auto slurp = [](const fs::path& p) { std::ifstream in(p); std::stringstream s; s << in.rdbuf(); return s.str(); };
+    r.out = slurp(dir_ / "stdout");
+    r.err = slurp(dir_ / "stderr");
+    return r;
+  }
+};
+
+int line_count(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+
+TEST_F(Cli, SynthThenInfoDescribesTheCapture) {
+  const std::string capture = (dir_ / "cap").string();
+  const CommandResult synth = run("synth --out " + capture + " --frames 2 --cameras 6 --miscalibrate 0.5,0.01");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const CommandResult info = run("info " + capture);
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  for (const char* expected : {"zipfusion.rig/1, 2 frames at 30 fps", "cam0", "cam5", "up to 0.500 deg / 10.0 mm", "frames examined: 2 of 2"}) {
+    EXPECT_NE(info.out.find(expected), std::string::npos) << expected << "\n" << info.out;
+  }
+  const CommandResult json_info = run("info --json " + capture);
+  ASSERT_EQ(json_info.exit_code, 0) << json_info.err;
+  const nlohmann::json j = nlohmann::json::parse(json_info.out);
+  ASSERT_EQ(j["cameras"].size(), 6u);
+  for (const auto& cam : j["cameras"]) {
+    EXPECT_EQ(cam["frames_with_depth"], 2);
+    EXPECT_GT(cam["valid_depth_fraction"].get<double>(), 0.2);
+    EXPECT_GT(cam["depth_m"]["median"].get<double>(), 1.5);
+    EXPECT_LT(cam["depth_m"]["median"].get<double>(), 4.5);
+    // The subject is in the volume; the floor and the far floor are not.
+    EXPECT_GT(cam["in_volume_fraction"].get<double>(), 0.1);
+    EXPECT_LT(cam["in_volume_fraction"].get<double>(), 0.9);
+  }
+}
+
+TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
+  struct Case {
+    std::string args, expected;
+  };
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 1 --cameras 2 --noise none").exit_code, 0);
+  // Break the rig: a focal length of zero.
+  std::string rig = [&] { std::ifstream in(fs::path(capture) / "rig.json"); std::stringstream s; s << in.rdbuf(); return s.str(); }();
+  const std::string broken = (dir_ / "broken").string();
+  fs::copy(capture, broken, fs::copy_options::recursive);
+  rig.replace(rig.find("\"fx\":580.0"), 10, "\"fx\":0");
+  write_file_atomic(fs::path(broken) / "rig.json", rig);
+
+  const std::vector<Case> cases = {
+      {"info " + (dir_ / "nowhere").string(), "nowhere: not a capture folder"},
+      {"info " + broken, "rig.json: cameras[0].depth_intrinsics.fx: must be positive"},
+      {"synth --out " + capture, "already exists and is not empty"},
+      {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
+      {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
+      {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply"},
+  };
+  for (const Case& c : cases) {
+    const CommandResult r = run(c.args);
+    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "x"));
+}
+
+TEST_F(Cli, EverySubcommandHasHelp) {
+  for (const std::string sub : {"synth", "info"}) {
+    const CommandResult r = run(sub + " --help");
+    EXPECT_EQ(r.exit_code, 0);
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
+  }
+  EXPECT_NE(run("synth --help").out.find("--miscalibrate"), std::string::npos);
+  EXPECT_NE(run("").exit_code, 0);
+}
+
+}  // namespace
+}  // namespace zipfusion

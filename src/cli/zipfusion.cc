@@ -1,0 +1,45 @@
+// zipfusion: one zippered mesh per frame from several RGB-D cameras. See README.md.
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <exception>
+#include <iostream>
+
+#include "cli/commands.h"
+#include "zipfusion/core/error.h"
+
+namespace zipfusion::cli {
+
+void show_progress(const std::string& label, int done, int total) {
+  static const bool is_terminal = ::isatty(STDERR_FILENO);
+  if (!is_terminal) return;
+  std::fprintf(stderr, "\r%s: %d/%d", label.c_str(), done, total);
+  if (done >= total) std::fprintf(stderr, "\n");
+  std::fflush(stderr);
+}
+
+}  // namespace zipfusion::cli
+
+int main(int argc, char** argv) {
+  CLI::App app{"zipfusion: one clean, coloured, connected triangle mesh per frame from several RGB-D cameras"};
+  app.set_version_flag("--version", "zipfusion 0.1.0");
+  app.require_subcommand(1);
+  zipfusion::cli::add_synth_command(app);
+  zipfusion::cli::add_info_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const zipfusion::InvalidInput& e) {
+    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    return 2;
+  } catch (const zipfusion::IoError& e) {
+    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    return 3;
+  } catch (const std::exception& e) {
+    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
