@@ -17,7 +17,6 @@ build: configure
 # The main job on a built-in synthetic capture: 4 Kinect-like cameras around a walking, waving person.
 demo: build
 	rm -rf $(DEMO_DIR)
-	mkdir -p $(dir $(DEMO_DIR))
 	$(BUILD_DIR)/zipfusion synth --out $(DEMO_DIR)/capture --frames 30 --cameras 4 --miscalibrate 0.5,0.01
 	$(BUILD_DIR)/zipfusion info $(DEMO_DIR)/capture
 	@echo

@@ -11,7 +11,7 @@
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/image_io.h"
 #include "zipfusion/io/mesh_io.h"
-#include "zipfusion/synth/rasterizer.h"
+#include "zipfusion/core/rasterizer.h"
 
 namespace zipfusion {
 namespace {
@@ -215,7 +215,8 @@ SynthResult write_synthetic_capture(const fs::path& out_dir, const SynthOptions&
     throw InvalidInput(out_dir.string() + ": already exists and is not empty (choose a new --out)");
   }
   const fs::path parent = out_dir.has_parent_path() ? out_dir.parent_path() : fs::path(".");
-  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": output's parent folder does not exist");
+  fs::create_directories(parent, ec);
+  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
 
   SynthResult result;
   result.true_rig = make_ring_rig(options);
