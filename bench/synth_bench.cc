@@ -3,7 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include "zipfusion/io/image_io.h"
-#include "zipfusion/synth/rasterizer.h"
+#include "zipfusion/core/rasterizer.h"
 #include "zipfusion/synth/synth.h"
 
 namespace zipfusion {

@@ -27,6 +27,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   zipfusion::cli::add_synth_command(app);
   zipfusion::cli::add_info_command(app);
+  zipfusion::cli::add_reconstruct_command(app);
+  zipfusion::cli::add_eval_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,4 +1,4 @@
-#include "zipfusion/synth/rasterizer.h"
+#include "zipfusion/core/rasterizer.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 #pragma once
 //! \file
-//! A z-buffer triangle rasterizer for synthetic captures: the true depth (along the optical axis)
+//! A z-buffer triangle rasterizer (synthetic captures, visibility in evaluation): the true depth (along the optical axis)
 //! and colour that a pinhole camera sees of a triangle mesh, plus an analytic floor plane.
 //! Pixel centres at integer coordinates (FORMATS.md); lens distortion is not rendered.
 

@@ -1,0 +1,42 @@
+#pragma once
+// --frames A:B for the CLI: frames A (inclusive) to B (exclusive); "A:" to the end, ":B" from 0,
+// "N" a single frame, empty all frames.
+
+#include <string>
+
+#include "zipfusion/core/error.h"
+
+namespace zipfusion::cli {
+
+struct FrameRange {
+  int begin = 0;
+  int end = 0;  // exclusive
+};
+
+inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
+  auto number = [&](const std::string& s, int fallback) {
+    if (s.empty()) return fallback;
+    size_t used = 0;
+    int value = -1;
+    try {
+      value = std::stoi(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != s.size() || value < 0) throw InvalidInput("--frames: expected A:B with whole numbers, got \"" + text + "\"");
+    return value;
+  };
+  FrameRange range{0, frame_count};
+  const size_t colon = text.find(':');
+  if (colon == std::string::npos) {
+    if (!text.empty()) range = {number(text, 0), number(text, 0) + 1};
+  } else {
+    range = {number(text.substr(0, colon), 0), number(text.substr(colon + 1), frame_count)};
+  }
+  if (range.begin >= range.end || range.end > frame_count) {
+    throw InvalidInput("--frames: \"" + text + "\" selects no frames of a capture with " + std::to_string(frame_count) + " frames");
+  }
+  return range;
+}
+
+}  // namespace zipfusion::cli

@@ -1,0 +1,147 @@
+// zipfusion reconstruct: one mesh per frame of a capture, with per-stage timings in stats.json.
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "cli/frame_range.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+#include "zipfusion/io/mesh_io.h"
+#include "zipfusion/pipeline/reconstruct.h"
+
+namespace zipfusion::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct ReconstructArgs {
+  std::string capture;
+  std::string out;
+  std::string frames;
+  std::string mode = "separate";
+  std::string filter = "bilateral";
+  std::string format = "ply";
+  std::string rig;
+  bool no_volume_crop = false;
+  ReconstructOptions options;
+};
+
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// Poses (and everything else) from another rig.json describing the same cameras.
+Rig rig_with_poses_from(const Rig& rig, const fs::path& path) {
+  Rig other = read_rig(path);
+  if (other.cameras.size() != rig.cameras.size()) {
+    throw InvalidInput(path.string() + ": cameras: has " + std::to_string(other.cameras.size()) + " cameras, the capture has " +
+                       std::to_string(rig.cameras.size()));
+  }
+  Rig result = rig;
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    if (other.cameras[c].name != rig.cameras[c].name) {
+      throw InvalidInput(path.string() + ": cameras[" + std::to_string(c) + "].name: \"" + other.cameras[c].name + "\" is not the capture's \"" +
+                         rig.cameras[c].name + "\"");
+    }
+    result.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
+  }
+  return result;
+}
+
+double median_of(std::vector<double> values) {
+  if (values.empty()) return 0;
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
+void run_reconstruct(ReconstructArgs& args) {
+  ReconstructOptions& options = args.options;
+  options.bilateral = args.filter == "bilateral";
+  options.foreground.crop_to_volume = !args.no_volume_crop;
+  options.validate();
+  const Capture capture = Capture::open(args.capture);
+  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
+
+  const fs::path out_dir = args.out;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
+
+  FrameReconstructor reconstructor(rig, options);
+  nlohmann::ordered_json frames = nlohmann::json::array();
+  std::vector<double> totals;
+  const std::string extension = "." + args.format;
+  for (int frame = range.begin; frame < range.end; ++frame) {
+    const Clock::time_point decode_start = Clock::now();
+    const FrameSet set = capture.load_frame(frame);
+    const double decode_ms = ms_since(decode_start);
+    const FrameResult result = reconstructor.reconstruct(set);
+    const Clock::time_point write_start = Clock::now();
+    write_mesh(out_dir / frame_file_name(frame, extension), result.mesh);
+    const double write_ms = ms_since(write_start);
+    const StageTimes& t = result.times;
+    totals.push_back(t.total_ms);
+    frames.push_back({{"frame", frame},
+                      {"cameras_used", result.cameras_used},
+                      {"triangles", result.mesh.triangle_count()},
+                      {"vertices", result.mesh.vertex_count()},
+                      {"ms", {{"decode", decode_ms}, {"foreground", t.foreground_ms}, {"filter", t.filter_ms}, {"triangulate", t.triangulate_ms},
+                              {"color", t.color_ms}, {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}}});
+    show_progress("reconstruct", frame - range.begin + 1, range.end - range.begin);
+  }
+
+  nlohmann::ordered_json stats;
+  stats["capture"] = args.capture;
+  stats["mode"] = args.mode;
+  stats["filter"] = args.filter;
+  stats["rig"] = args.rig.empty() ? (fs::path(args.capture) / "rig.json").string() : args.rig;
+  stats["options"] = {{"min_depth_m", options.foreground.min_depth_m},
+                      {"max_depth_m", options.foreground.max_depth_m},
+                      {"crop_to_volume", options.foreground.crop_to_volume},
+                      {"max_depth_jump_m", options.sdc.max_depth_jump_m},
+                      {"bilateral_sigma_px", options.filter.spatial_sigma_px},
+                      {"bilateral_radius_px", options.filter.radius_px},
+                      {"bilateral_range_sigma_m", options.filter.range_sigma_m},
+                      {"threads", options.num_threads}};
+  stats["frames"] = frames;
+  stats["median_total_ms"] = median_of(totals);
+  write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
+  std::cout << "wrote " << frames.size() << " meshes (" << args.mode << ") to " << out_dir.string() << ", median reconstruction "
+            << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+}
+
+}  // namespace
+
+void add_reconstruct_command(CLI::App& app) {
+  auto args = std::make_shared<ReconstructArgs>();
+  ReconstructOptions& o = args->options;
+  CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct one mesh per frame of a capture");
+  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  cmd->add_option("--out", args->out, "Output folder: NNNNNN.ply per frame and stats.json")->required();
+  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
+  cmd->add_option("--mode", args->mode, "separate: one SDC mesh per camera, concatenated")
+      ->check(CLI::IsMember({"separate"}))
+      ->capture_default_str();
+  cmd->add_option("--filter", args->filter, "Depth filter before triangulation")
+      ->check(CLI::IsMember({"bilateral", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
+  cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
+  cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
+  cmd->add_flag("--no-volume-crop", args->no_volume_crop, "Keep depth outside the rig's capture volume");
+  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres")
+      ->capture_default_str();
+  cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
+  cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
+  cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
+  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->callback([args] { run_reconstruct(*args); });
+}
+
+}  // namespace zipfusion::cli

@@ -1,0 +1,72 @@
+#include "zipfusion/depth/bilateral.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace zipfusion {
+namespace {
+
+// A step edge: 2.0 m on the left, 2.3 m on the right, with Gaussian noise σ = 1 cm, a hole.
+Image<float> noisy_step(int width, int height, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  Image<float> depth(width, height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) depth(u, v) = (u < width / 2 ? 2.0f : 2.3f) + noise(rng);
+  }
+  for (int v = 10; v < 20; ++v) {
+    for (int u = 5; u < 15; ++u) depth(u, v) = 0;
+  }
+  return depth;
+}
+
+double rms_error(const Image<float>& depth, int u0, int u1, float truth) {
+  double sum = 0;
+  int n = 0;
+  for (int v = 0; v < depth.height; ++v) {
+    for (int u = u0; u < u1; ++u) {
+      if (depth(u, v) <= 0) continue;
+      sum += std::pow(depth(u, v) - truth, 2);
+      ++n;
+    }
+  }
+  return std::sqrt(sum / n);
+}
+
+TEST(Bilateral, SmoothsSurfacesAndKeepsStepsAndHoles) {
+  const Image<float> input = noisy_step(64, 48, 3);
+  Image<float> output;
+  bilateral_filter(input, BilateralKernel(BilateralOptions{}), output, 2);
+  // Noise within each side drops several times (the paper's σ 4 px kernel averages ~100 pixels).
+  EXPECT_LT(rms_error(output, 0, 30, 2.0f), rms_error(input, 0, 30, 2.0f) / 4);
+  EXPECT_LT(rms_error(output, 34, 64, 2.3f), rms_error(input, 34, 64, 2.3f) / 4);
+  // Right at the step, no pixel is pulled towards the other side by more than 1.5 cm.
+  for (int v = 0; v < 48; ++v) {
+    EXPECT_LT(std::abs(output(31, v) - 2.0f), 0.015f + std::abs(input(31, v) - 2.0f)) << v;
+    EXPECT_LT(std::abs(output(32, v) - 2.3f), 0.015f + std::abs(input(32, v) - 2.3f)) << v;
+  }
+  // Holes stay holes and nothing else becomes one.
+  for (size_t i = 0; i < input.size(); ++i) EXPECT_EQ(output.data[i] == 0, input.data[i] == 0) << i;
+}
+
+TEST(Bilateral, FlatSurfaceIsAFixedPoint) {
+  Image<float> flat(20, 20, 1.5f);
+  flat(3, 3) = 0;
+  Image<float> output;
+  bilateral_filter(flat, BilateralKernel(BilateralOptions{}), output, 1);
+  for (size_t i = 0; i < flat.size(); ++i) EXPECT_NEAR(output.data[i], flat.data[i], 1e-5f);  // float rounding: 10 µm
+}
+
+TEST(Bilateral, ThreadCountDoesNotChangeTheResult) {
+  const Image<float> input = noisy_step(50, 40, 9);
+  Image<float> one, two;
+  const BilateralKernel kernel(BilateralOptions{.spatial_sigma_px = 3, .radius_px = 4, .range_sigma_m = 0.03});
+  bilateral_filter(input, kernel, one, 1);
+  bilateral_filter(input, kernel, two, 2);
+  EXPECT_EQ(one, two);
+}
+
+}  // namespace
+}  // namespace zipfusion

@@ -1,0 +1,35 @@
+#pragma once
+//! \file
+//! Per-vertex colour (paper Section III-B): each depth pixel's 3-D point is projected into the
+//! colour camera (color_from_depth, colour intrinsics and distortion) and the colour image is
+//! sampled bilinearly. Points outside the colour image, and cameras without colour, get grey.
+
+#include <vector>
+
+#include "zipfusion/core/image.h"
+#include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+
+inline constexpr Rgb8 kNoColor{128, 128, 128};
+
+//! Element function: bilinear sample at (x, y) (pixel centres at integers); kNoColor outside.
+inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
+  if (!(x >= 0.0f && y >= 0.0f && x <= image.width - 1.0f && y <= image.height - 1.0f)) return kNoColor;
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = x0 + 1 < image.width ? x0 + 1 : x0, y1 = y0 + 1 < image.height ? y0 + 1 : y0;
+  const float fx = x - x0, fy = y - y0;
+  const Rgb8 a = image(x0, y0), b = image(x1, y0), c = image(x0, y1), d = image(x1, y1);
+  auto mix = [&](unsigned char pa, unsigned char pb, unsigned char pc, unsigned char pd) {
+    const float top = pa + fx * (pb - pa), bottom = pc + fx * (pd - pc);
+    return static_cast<unsigned char>(top + fy * (bottom - top) + 0.5f);
+  };
+  return {mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
+}
+
+//! Colour of every pixel of `mesh` that has depth (kNoColor elsewhere, or everywhere when
+//! `color` is null or the camera has no colour). `out` is resized to the pixel count.
+void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const ColorImage* color, std::vector<Rgb8>& out);
+
+}  // namespace zipfusion

@@ -1,0 +1,114 @@
+#pragma once
+//! \file
+//! Step-discontinuity-constrained (SDC) triangulation of one depth map (paper Section III-B).
+//!
+//! Every pixel p = (u, v) with u < width−1, v < height−1 owns two triangles of its 2×2 cell:
+//!
+//!     p ------- r          upper triangle (bit kUpperTriangle): p, b, r
+//!     |  U   /  |          lower triangle (bit kLowerTriangle): r, b, d
+//!     |    /  L |          (counter-clockwise as the camera sees them, so normals face it)
+//!     b ------- d
+//!
+//! A triangle exists when its three depths are valid and pairwise differ by less than
+//! max_depth_jump_m (the paper compares depths rather than 3-D distances: the pixel spacing is far
+//! below the threshold). The triangles are kept as this per-pixel bit matrix until assembly, so
+//! boundary tests, coarse-to-fine and removal are array operations.
+
+#include <cstdint>
+#include <vector>
+
+#include "zipfusion/core/camera.h"
+#include "zipfusion/core/geometry.h"
+#include "zipfusion/core/image.h"
+#include "zipfusion/core/mesh.h"
+
+namespace zipfusion {
+
+enum TriangleBit : std::uint8_t { kUpperTriangle = 1, kLowerTriangle = 2 };
+
+struct SdcOptions {
+  double max_depth_jump_m = 0.03;  // metres; paper Section III-B (see docs/design.md for the choice)
+
+  void validate() const;  // throws InvalidInput naming the field
+};
+
+//! One camera's triangulated depth map. Thread safety: plain data.
+struct DepthMesh {
+  int width = 0;
+  int height = 0;
+  std::vector<float> depth;                // per pixel, metres along the camera axis; 0 = none
+  std::vector<Eigen::Vector3f> points;     // per pixel, world coordinates (valid where depth > 0)
+  std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags
+
+  int triangle_count() const;
+};
+
+//! Element function: the triangle bits of pixel `index` from the depth map.
+inline std::uint8_t sdc_cell(int index, const float* depth, int width, int height, float max_jump) {
+  const int u = index % width, v = index / width;
+  if (u >= width - 1 || v >= height - 1) return 0;
+  const float p = depth[index], r = depth[index + 1], b = depth[index + width], d = depth[index + width + 1];
+  auto close = [max_jump](float a, float c) { return (a > c ? a - c : c - a) < max_jump; };
+  std::uint8_t bits = 0;
+  if (p > 0 && r > 0 && b > 0 && close(p, r) && close(p, b) && close(r, b)) bits |= kUpperTriangle;
+  if (r > 0 && b > 0 && d > 0 && close(r, b) && close(r, d) && close(b, d)) bits |= kLowerTriangle;
+  return bits;
+}
+
+//! Pixel indices of the three vertices of triangle `bit` of cell `index`, counter-clockwise as seen
+//! from the camera.
+inline void triangle_pixels(int index, int width, TriangleBit bit, int out[3]) {
+  if (bit == kUpperTriangle) {
+    out[0] = index;
+    out[1] = index + width;
+    out[2] = index + 1;
+  } else {
+    out[0] = index + 1;
+    out[1] = index + width;
+    out[2] = index + width + 1;
+  }
+}
+
+//! Centre (centroid) of a triangle in world coordinates.
+inline Eigen::Vector3f triangle_centre(const DepthMesh& mesh, int index, TriangleBit bit) {
+  int v[3];
+  triangle_pixels(index, mesh.width, bit, v);
+  return (mesh.points[v[0]] + mesh.points[v[1]] + mesh.points[v[2]]) * (1.0f / 3.0f);
+}
+
+//! True when the triangle exists and one of its three edge neighbours does not.
+//! Upper triangle of (u, v): neighbours are the lower triangles of (u, v−1), (u−1, v) and (u, v).
+//! Lower triangle of (u, v): neighbours are the upper triangles of (u, v), (u+1, v) and (u, v+1).
+inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int width, int height, TriangleBit bit) {
+  if (!(triangles[index] & bit)) return false;
+  const int u = index % width, v = index / width;
+  if (bit == kUpperTriangle) {
+    return !(triangles[index] & kLowerTriangle) || v == 0 || !(triangles[index - width] & kLowerTriangle) || u == 0 ||
+           !(triangles[index - 1] & kLowerTriangle);
+  }
+  return !(triangles[index] & kUpperTriangle) || v + 1 >= height || !(triangles[index + width] & kUpperTriangle) ||
+         u + 1 >= width || !(triangles[index + 1] & kUpperTriangle);
+}
+
+//! Pixel of a world point in a camera (`depth_from_world` = inverse of its world_from_depth), or
+//! false when the point is behind it.
+inline bool project_world_point(const Eigen::Vector3f& p_world, const Rigid3f& depth_from_world, const Intrinsics& k,
+                                Eigen::Vector2f& pixel, float& depth) {
+  const Eigen::Vector3f p = depth_from_world * p_world;
+  if (p.z() <= 0) return false;
+  pixel = project_pinhole(k, p);
+  depth = p.z();
+  return true;
+}
+
+//! Triangulates `depth_m` (metres, 0 = none) of a camera into `out`, reusing its buffers.
+void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
+                     DepthMesh& out);
+
+//! Appends the existing triangles of `mesh` to `out` with vertices compacted: each pixel used by a
+//! triangle becomes one vertex, shared by its triangles. `colors` holds one colour per pixel
+//! (ignored when empty: then `out` gets none either). `vertex_of_pixel` is scratch space.
+void append_depth_mesh(const DepthMesh& mesh, const std::vector<Rgb8>& colors, TriangleMesh& out,
+                       std::vector<int>& vertex_of_pixel);
+
+}  // namespace zipfusion

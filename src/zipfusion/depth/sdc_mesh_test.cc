@@ -1,0 +1,139 @@
+#include "zipfusion/depth/sdc_mesh.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <tuple>
+
+namespace zipfusion {
+namespace {
+
+const Intrinsics kCamera{.width = 4, .height = 3, .fx = 100, .fy = 100, .cx = 1.5, .cy = 1.0};
+
+Image<float> depth_from(std::initializer_list<std::initializer_list<float>> rows) {
+  Image<float> depth(static_cast<int>(rows.begin()->size()), static_cast<int>(rows.size()));
+  int v = 0;
+  for (const auto& row : rows) {
+    int u = 0;
+    for (float z : row) depth(u++, v) = z;
+    ++v;
+  }
+  return depth;
+}
+
+using TriangleSet = std::set<std::tuple<int, int, int>>;
+
+// The triangles of a mesh as pixel-index triples.
+TriangleSet triangles_of(const DepthMesh& mesh) {
+  TriangleSet set;
+  for (int i = 0; i < mesh.width * mesh.height; ++i) {
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (!(mesh.triangles[i] & bit)) continue;
+      int v[3];
+      triangle_pixels(i, mesh.width, bit, v);
+      set.insert({v[0], v[1], v[2]});
+    }
+  }
+  return set;
+}
+
+DepthMesh triangulate(const Image<float>& depth, double max_jump = 0.03) {
+  DepthMesh mesh;
+  triangulate_sdc(depth, {.width = depth.width, .height = depth.height, .fx = 100, .fy = 100, .cx = 1.5, .cy = 1.0}, Rigid3f::Identity(),
+                  {.max_depth_jump_m = max_jump}, mesh);
+  return mesh;
+}
+
+TEST(Sdc, FlatPatchIsFullyTriangulated) {
+  const DepthMesh mesh = triangulate(depth_from({{2, 2, 2, 2}, {2, 2, 2, 2}, {2, 2, 2, 2}}));
+  // Pixels are numbered row-major: 0 1 2 3 / 4 5 6 7 / 8 9 10 11.
+  const TriangleSet expected = {{0, 4, 1}, {1, 4, 5}, {1, 5, 2}, {2, 5, 6}, {2, 6, 3}, {3, 6, 7},
+                                {4, 8, 5}, {5, 8, 9}, {5, 9, 6}, {6, 9, 10}, {6, 10, 7}, {7, 10, 11}};
+  EXPECT_EQ(triangles_of(mesh), expected);
+  EXPECT_EQ(mesh.triangle_count(), 12);
+}
+
+TEST(Sdc, MissingDepthAndStepsRemoveExactlyTheirTriangles) {
+  // Pixel 5 has no depth; pixel 3 stands 5 cm behind its neighbours (a step); pixel 10 is 2.9 cm
+  // off, within the 3 cm threshold.
+  const DepthMesh mesh = triangulate(depth_from({{2, 2, 2, 2.05f}, {2, 0, 2, 2}, {2, 2, 2.029f, 2}}));
+  const TriangleSet expected = {{0, 4, 1}, {6, 9, 10}, {6, 10, 7}, {7, 10, 11}};
+  EXPECT_EQ(triangles_of(mesh), expected);
+}
+
+TEST(Sdc, ThresholdIsStrict) {
+  EXPECT_EQ(triangulate(depth_from({{2, 2}, {2, 2.0299f}})).triangle_count(), 2);
+  EXPECT_EQ(triangulate(depth_from({{2, 2}, {2, 2.0301f}})).triangle_count(), 1);  // only the upper triangle
+  EXPECT_EQ(triangulate(depth_from({{2, 2}, {2, 2.0301f}}), 0.05).triangle_count(), 2);
+}
+
+TEST(Sdc, TrianglesFaceTheCameraAndPointsUnproject) {
+  const DepthMesh mesh = triangulate(depth_from({{2, 2}, {2, 2}}));
+  const Eigen::Vector3f& p0 = mesh.points[0];
+  EXPECT_NEAR(p0.x(), (0 - 1.5f) * 2 / 100, 1e-6);
+  EXPECT_NEAR(p0.y(), (0 - 1.0f) * 2 / 100, 1e-6);
+  EXPECT_FLOAT_EQ(p0.z(), 2);
+  for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+    int v[3];
+    triangle_pixels(0, 2, bit, v);
+    const Eigen::Vector3f normal = (mesh.points[v[1]] - mesh.points[v[0]]).cross(mesh.points[v[2]] - mesh.points[v[0]]);
+    EXPECT_LT(normal.z(), 0) << "normal must point towards the camera (−z)";
+  }
+  EXPECT_TRUE(triangle_centre(mesh, 0, kUpperTriangle).isApprox((mesh.points[0] + mesh.points[2] + mesh.points[1]) / 3));
+}
+
+TEST(Sdc, BoundaryTrianglesAreThoseMissingANeighbour) {
+  // A 5×5 valid patch: 4×4 cells, 32 triangles. Interior triangles have all three neighbours.
+  Image<float> depth(5, 5, 2.0f);
+  DepthMesh mesh = triangulate(depth);
+  int boundary = 0;
+  for (int i = 0; i < 25; ++i) {
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) boundary += is_boundary_triangle(mesh.triangles.data(), i, 5, 5, bit);
+  }
+  // Around a 4×4 cell grid: upper triangles on the top row and left column, lower triangles on
+  // the bottom row and right column: 4 + 4 − 1 (corner cell counted once) each.
+  EXPECT_EQ(boundary, 14);
+  // Removing the lower triangle of the centre cell (1,1) exposes its three neighbours.
+  const int centre = 1 * 5 + 1;
+  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, 5, kUpperTriangle));
+  mesh.triangles[centre] &= ~kLowerTriangle;
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre, 5, 5, kUpperTriangle));
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, 5, kUpperTriangle));
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 5, 5, 5, kUpperTriangle));
+  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre, 5, 5, kLowerTriangle));  // gone
+}
+
+TEST(Sdc, AppendCompactsVerticesAndSharesThem) {
+  const DepthMesh mesh = triangulate(depth_from({{2, 2, 0}, {2, 2, 0}, {0, 0, 0}}));
+  std::vector<Rgb8> colors(9, Rgb8{1, 2, 3});
+  colors[4] = {9, 9, 9};
+  TriangleMesh out;
+  std::vector<int> scratch;
+  append_depth_mesh(mesh, colors, out, scratch);
+  ASSERT_EQ(out.triangle_count(), 2u);
+  ASSERT_EQ(out.vertex_count(), 4u);  // pixels 0, 1, 3, 4 once each
+  ASSERT_EQ(out.colors.size(), 4u);
+  int nines = 0;
+  for (const Rgb8& c : out.colors) nines += c == Rgb8{9, 9, 9};
+  EXPECT_EQ(nines, 1);
+  // Appending again offsets the indices.
+  append_depth_mesh(mesh, colors, out, scratch);
+  EXPECT_EQ(out.vertex_count(), 8u);
+  EXPECT_EQ(out.triangles[2].minCoeff(), 4);
+}
+
+TEST(Sdc, ProjectWorldPointInvertsUnproject) {
+  Rigid3f world_from_depth = Rigid3f::Identity();
+  world_from_depth.linear() = Eigen::AngleAxisf(0.3f, Eigen::Vector3f::UnitY()).toRotationMatrix();
+  world_from_depth.translation() = Eigen::Vector3f(0.5f, -1, 2);
+  const Eigen::Vector3f p = world_from_depth * unproject(kCamera, 2.25f, 0.5f, 3.0f);
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  ASSERT_TRUE(project_world_point(p, world_from_depth.inverse(), kCamera, pixel, depth));
+  EXPECT_NEAR(pixel.x(), 2.25f, 1e-4);
+  EXPECT_NEAR(pixel.y(), 0.5f, 1e-4);
+  EXPECT_NEAR(depth, 3.0f, 1e-5);
+}
+
+}  // namespace
+}  // namespace zipfusion

@@ -1,0 +1,68 @@
+#include "zipfusion/pipeline/reconstruct.h"
+
+#include <chrono>
+
+#include "zipfusion/core/parallel.h"
+#include "zipfusion/depth/color_lookup.h"
+
+namespace zipfusion {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double elapsed_ms(Clock::time_point since) { return std::chrono::duration<double, std::milli>(Clock::now() - since).count(); }
+
+}  // namespace
+
+void ReconstructOptions::validate() const {
+  foreground.validate();
+  filter.validate();
+  sdc.validate();
+}
+
+FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
+    : rig_(rig), options_(options), kernel_((options.validate(), options.filter)), cameras_(rig.cameras.size()) {}
+
+FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
+  const Clock::time_point start = Clock::now();
+  FrameResult result;
+  const int camera_count = static_cast<int>(rig_.cameras.size());
+  std::vector<bool> active(camera_count, false);
+  for (int c = 0; c < camera_count; ++c) active[c] = c < static_cast<int>(frames.cameras.size()) && frames.cameras[c].has_depth;
+  const int threads = options_.num_threads;
+
+  auto stage = [&](double& ms, auto&& per_camera) {
+    const Clock::time_point t = Clock::now();
+    parallel_for(0, camera_count, [&](int c) {
+      if (active[c]) per_camera(c, cameras_[c]);
+    }, threads);
+    ms = elapsed_ms(t);
+  };
+
+  stage(result.times.foreground_ms, [&](int c, CameraState& s) {
+    extract_foreground(frames.cameras[c].depth, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
+  });
+  if (options_.bilateral) {
+    stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, 1); });
+  }
+  stage(result.times.triangulate_ms, [&](int c, CameraState& s) {
+    const Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;
+    triangulate_sdc(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), options_.sdc, s.mesh);
+  });
+  stage(result.times.color_ms, [&](int c, CameraState& s) {
+    const CameraFrame& frame = frames.cameras[c];
+    lookup_colors(s.mesh, rig_.cameras[c], frame.has_color ? &frame.color : nullptr, s.colors);
+  });
+
+  const Clock::time_point assemble_start = Clock::now();
+  for (int c = 0; c < camera_count; ++c) {
+    if (!active[c]) continue;
+    ++result.cameras_used;
+    append_depth_mesh(cameras_[c].mesh, cameras_[c].colors, result.mesh, vertex_of_pixel_);
+  }
+  result.times.assemble_ms = elapsed_ms(assemble_start);
+  result.times.total_ms = elapsed_ms(start);
+  return result;
+}
+
+}  // namespace zipfusion
