@@ -9,6 +9,7 @@ packages=(
   libopencv-dev                      # PNG/JPEG decoding, image ops, calibration
   nlohmann-json3-dev                 # rig.json, stats.json
   libcli11-dev                       # command line
+  libcgal-dev                        # 2-D Delaunay triangulation of seams
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
 )
