@@ -1,0 +1,118 @@
+// End-to-end test of `zipfusion eval`: a synthetic capture, reconstructions made from its ground
+// truth, the table, the JSON and the errors.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "zipfusion/io/mesh_io.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+class EvalCli : public ::testing::Test {
+ protected:
+  fs::path dir_ = fs::temp_directory_path() / ("zf_eval_cli_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+  void SetUp() override { fs::remove_all(dir_); fs::create_directories(dir_); }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  CommandResult run(const std::string& args) {
+    const std::string command = std::string(ZF_BINARY) + " " + args + " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() + " < /dev/null";
+    const int status = std::system(command.c_str());
+    CommandResult r;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    auto slurp = [](const fs::path& p) { std::ifstream in(p); std::stringstream s; s << in.rdbuf(); return s.str(); };
+    r.out = slurp(dir_ / "stdout");
+    r.err = slurp(dir_ / "stderr");
+    return r;
+  }
+};
+
+int line_count(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+
+TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 3 --cameras 3 --noise none").exit_code, 0);
+  // Frame 0: the true surface with colours 10 levels darker (the true colours are all >= 16);
+  // frame 1: the truth 5 mm higher, as OBJ; frame 2: none.
+  const fs::path recon = dir_ / "recon";
+  fs::create_directories(recon);
+  TriangleMesh darker = read_mesh(capture / "ground_truth" / "mesh" / "000000.ply");
+  for (Rgb8& c : darker.colors) c = {static_cast<unsigned char>(c.r - 10), static_cast<unsigned char>(c.g - 10), static_cast<unsigned char>(c.b - 10)};
+  write_mesh(recon / "000000.ply", darker);
+  TriangleMesh moved = read_mesh(capture / "ground_truth" / "mesh" / "000001.ply");
+  for (Eigen::Vector3f& p : moved.positions) p.z() += 0.005f;
+  write_mesh(recon / "000001.obj", moved);
+
+  const CommandResult json_run = run("eval " + capture.string() + " " + recon.string() + " --json --threads 2");
+  ASSERT_EQ(json_run.exit_code, 0) << json_run.err;
+  const nlohmann::json j = nlohmann::json::parse(json_run.out);
+  ASSERT_EQ(j["frames"].size(), 2u);
+  EXPECT_EQ(j["missing_frames"], nlohmann::json::array({2}));
+  const auto& exact = j["frames"][0];
+  EXPECT_EQ(exact["frame"], 0);
+  EXPECT_LT(exact["accuracy_mean_mm"].get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(exact["completeness"].get<double>(), 1.0);
+  EXPECT_NEAR(exact["color_error"].get<double>(), 10.0, 0.01);
+  EXPECT_EQ(exact["non_manifold_edges"], 0);
+  EXPECT_EQ(exact["components"], 18);  // the built-in human's closed parts
+  EXPECT_GT(exact["area_ratio"].get<double>(), 1.0);  // some of the truth is hidden from all cameras
+  const auto& shifted = j["frames"][1];
+  EXPECT_EQ(shifted["file"], "000001.obj");
+  EXPECT_GT(shifted["accuracy_mean_mm"].get<double>(), 1.0);  // 5 mm up: 0 on vertical surfaces, 5 on horizontal ones
+  EXPECT_GT(shifted["accuracy_p95_mm"].get<double>(), 4.0);
+  EXPECT_LT(shifted["accuracy_mean_mm"].get<double>(), 5.0);
+  EXPECT_GT(shifted["completeness"].get<double>(), 0.99);
+  EXPECT_NEAR(j["mean"]["accuracy_mean_mm"].get<double>(), shifted["accuracy_mean_mm"].get<double>() / 2, 0.01);
+  EXPECT_NEAR(j["mean"]["color_error"].get<double>(), (10 + shifted["color_error"].get<double>()) / 2, 0.01);
+
+  const CommandResult table = run("eval " + capture.string() + " " + recon.string() + " --frames 1:3");
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  for (const char* expected : {"reconstructions  " , ": 1 of 2 frames", "     1 ", "  mean ", "missing reconstructions: 1 frame (2)"}) {
+    EXPECT_NE(table.out.find(expected), std::string::npos) << expected << "\n" << table.out;
+  }
+  EXPECT_EQ(table.out.find("\n     0 "), std::string::npos) << table.out;
+}
+
+TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 1 --noise none").exit_code, 0);
+  const fs::path no_truth = dir_ / "no_truth";
+  fs::copy(capture, no_truth, fs::copy_options::recursive);
+  fs::remove_all(no_truth / "ground_truth");
+  const fs::path empty = dir_ / "empty";
+  fs::create_directories(empty);
+  struct Case {
+    std::string args, expected;
+  };
+  const std::vector<Case> cases = {
+      {"eval " + no_truth.string() + " " + empty.string(),
+       (no_truth / "ground_truth" / "rig.json").string() + ": missing: eval needs a capture with ground truth (synth writes one)"},
+      {"eval " + capture.string() + " " + empty.string(), empty.string() + ": no reconstruction"},
+      {"eval " + capture.string() + " " + (dir_ / "nowhere").string(), "nowhere: not a folder of reconstructions"},
+      {"eval " + capture.string() + " " + empty.string() + " --min-range 3 --max-range 2", "max_range_m"},
+  };
+  for (const Case& c : cases) {
+    const CommandResult r = run(c.args);
+    EXPECT_EQ(r.exit_code, 2) << c.args;
+    EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
+  }
+  EXPECT_NE(run("eval --help").out.find("--completeness-mm"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace zipfusion
