@@ -24,7 +24,7 @@ struct ReconstructArgs {
   std::string capture;
   std::string out;
   std::string frames;
-  std::string mode = "separate";
+  std::string mode = "zipper";
   std::string filter = "bilateral";
   std::string format = "ply";
   std::string rig;
@@ -61,6 +61,7 @@ double median_of(std::vector<double> values) {
 void run_reconstruct(ReconstructArgs& args) {
   ReconstructOptions& options = args.options;
   options.bilateral = args.filter == "bilateral";
+  options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   const Capture capture = Capture::open(args.capture);
@@ -91,7 +92,10 @@ void run_reconstruct(ReconstructArgs& args) {
                       {"triangles", result.mesh.triangle_count()},
                       {"vertices", result.mesh.vertex_count()},
                       {"ms", {{"decode", decode_ms}, {"foreground", t.foreground_ms}, {"filter", t.filter_ms}, {"triangulate", t.triangulate_ms},
-                              {"color", t.color_ms}, {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}}});
+                              {"color", t.color_ms}, {"overlap", t.overlap_ms}, {"redundancy", t.redundancy_ms}, {"clipping", t.clipping_ms},
+                              {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}},
+                    {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
+                                {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
     show_progress("reconstruct", frame - range.begin + 1, range.end - range.begin);
   }
 
@@ -107,6 +111,12 @@ void run_reconstruct(ReconstructArgs& args) {
                       {"bilateral_sigma_px", options.filter.spatial_sigma_px},
                       {"bilateral_radius_px", options.filter.radius_px},
                       {"bilateral_range_sigma_m", options.filter.range_sigma_m},
+                      {"redundancy_distance_m", options.zipper.redundancy_distance_m},
+                      {"coarse_levels", options.zipper.coarse_levels},
+                      {"coarse_shrink", options.zipper.coarse_shrink},
+                      {"clipping_distance_m", options.zipper.clipping_distance_m},
+                      {"max_seam_edge_m", options.zipper.max_seam_edge_m},
+                      {"min_overlap_share", options.zipper.min_overlap_share},
                       {"threads", options.num_threads}};
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
@@ -124,8 +134,8 @@ void add_reconstruct_command(CLI::App& app) {
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
   cmd->add_option("--out", args->out, "Output folder: NNNNNN.ply per frame and stats.json")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
-  cmd->add_option("--mode", args->mode, "separate: one SDC mesh per camera, concatenated")
-      ->check(CLI::IsMember({"separate"}))
+  cmd->add_option("--mode", args->mode, "zipper: one connected mesh; separate: one SDC mesh per camera, concatenated")
+      ->check(CLI::IsMember({"zipper", "separate"}))
       ->capture_default_str();
   cmd->add_option("--filter", args->filter, "Depth filter before triangulation")
       ->check(CLI::IsMember({"bilateral", "none"}))
@@ -140,6 +150,15 @@ void add_reconstruct_command(CLI::App& app) {
   cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
   cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
   cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
+  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres")
+      ->capture_default_str();
+  cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L")->capture_default_str();
+  cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r")->capture_default_str();
+  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
+      ->capture_default_str();
+  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
+  cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
+      ->capture_default_str();
   cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
   cmd->callback([args] { run_reconstruct(*args); });
 }

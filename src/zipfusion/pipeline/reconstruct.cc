@@ -12,16 +12,22 @@ using Clock = std::chrono::steady_clock;
 
 double elapsed_ms(Clock::time_point since) { return std::chrono::duration<double, std::milli>(Clock::now() - since).count(); }
 
+const ReconstructOptions& validated(const ReconstructOptions& options) {
+  options.validate();
+  return options;
+}
+
 }  // namespace
 
 void ReconstructOptions::validate() const {
   foreground.validate();
   filter.validate();
   sdc.validate();
+  zipper.validate();
 }
 
 FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
-    : rig_(rig), options_(options), kernel_((options.validate(), options.filter)), cameras_(rig.cameras.size()) {}
+    : rig_(rig), options_(validated(options)), kernel_(options.filter), cameras_(rig.cameras.size()) {}
 
 FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   const Clock::time_point start = Clock::now();
@@ -54,13 +60,29 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     lookup_colors(s.mesh, rig_.cameras[c], frame.has_color ? &frame.color : nullptr, s.colors);
   });
 
-  const Clock::time_point assemble_start = Clock::now();
-  for (int c = 0; c < camera_count; ++c) {
-    if (!active[c]) continue;
-    ++result.cameras_used;
-    append_depth_mesh(cameras_[c].mesh, cameras_[c].colors, result.mesh, vertex_of_pixel_);
+  for (int c = 0; c < camera_count; ++c) result.cameras_used += active[c];
+  if (options_.mode == ReconstructMode::kZipper) {
+    std::vector<ZipperCamera> inputs(camera_count);
+    for (int c = 0; c < camera_count; ++c) {
+      if (active[c]) inputs[c] = {&cameras_[c].mesh, &cameras_[c].colors, &rig_.cameras[c]};
+    }
+    ZipperOptions zipper = options_.zipper;
+    zipper.sdc_max_depth_jump_m = options_.sdc.max_depth_jump_m;
+    zipper.num_threads = threads;
+    ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_);
+    result.mesh = std::move(zipped.mesh);
+    result.zipper = zipped.stats;
+    result.times.overlap_ms = zipped.stats.pyramid_ms + zipped.stats.overlap_ms;
+    result.times.redundancy_ms = zipped.stats.redundancy_ms;
+    result.times.clipping_ms = zipped.stats.clipping_ms;
+    result.times.assemble_ms = zipped.stats.assemble_ms;
+  } else {
+    const Clock::time_point assemble_start = Clock::now();
+    for (int c = 0; c < camera_count; ++c) {
+      if (active[c]) append_depth_mesh(cameras_[c].mesh, cameras_[c].colors, result.mesh, vertex_of_pixel_);
+    }
+    result.times.assemble_ms = elapsed_ms(assemble_start);
   }
-  result.times.assemble_ms = elapsed_ms(assemble_start);
   result.times.total_ms = elapsed_ms(start);
   return result;
 }

@@ -13,21 +13,24 @@
 #include "zipfusion/depth/bilateral.h"
 #include "zipfusion/depth/foreground.h"
 #include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/fusion/zipper.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/rig.h"
 
 namespace zipfusion {
 
 enum class ReconstructMode {
+  kZipper,    // one connected mesh: redundancy removal and clipping (paper Sections III-C, III-D)
   kSeparate,  // one mesh per camera, concatenated (the paper's baseline)
 };
 
 struct ReconstructOptions {
-  ReconstructMode mode = ReconstructMode::kSeparate;
+  ReconstructMode mode = ReconstructMode::kZipper;
   bool bilateral = true;  // filter depth before triangulation (paper Section III-B)
   ForegroundOptions foreground;
   BilateralOptions filter;
   SdcOptions sdc;
+  ZipperOptions zipper;  // sdc_max_depth_jump_m is taken from `sdc`
   int num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming the field
@@ -39,6 +42,9 @@ struct StageTimes {
   double filter_ms = 0;
   double triangulate_ms = 0;
   double color_ms = 0;
+  double overlap_ms = 0;     // zipper: coarse levels and overlapping pairs
+  double redundancy_ms = 0;  // zipper: coarse-to-fine redundant boundary removal
+  double clipping_ms = 0;    // zipper: seams re-triangulated
   double assemble_ms = 0;
   double total_ms = 0;
 };
@@ -47,6 +53,7 @@ struct FrameResult {
   TriangleMesh mesh;      // world coordinates, per-vertex colour
   StageTimes times;
   int cameras_used = 0;   // cameras that had depth in this frame set
+  ZipperStats zipper;     // zipper mode only
 };
 
 class FrameReconstructor {
@@ -70,6 +77,7 @@ class FrameReconstructor {
   BilateralKernel kernel_;
   std::vector<CameraState> cameras_;
   std::vector<int> vertex_of_pixel_;
+  ZipperScratch zipper_scratch_;
 };
 
 }  // namespace zipfusion

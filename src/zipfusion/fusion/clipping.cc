@@ -1,0 +1,258 @@
+#include "zipfusion/fusion/clipping.h"
+
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+
+namespace zipfusion {
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+// Vertex info: the seam vertex index; −1 for a vertex CGAL made where two constraints cross.
+struct SeamInfo {
+  int index = -1;
+};
+using VertexBase = CGAL::Triangulation_vertex_base_with_info_2<SeamInfo, Kernel>;
+using FaceBase = CGAL::Constrained_triangulation_face_base_2<Kernel>;
+using TriangulationData = CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>;
+// Constraints from two meshes may cross where their borders overlap; Exact_predicates_tag lets
+// CGAL split them at an approximate intersection instead of failing.
+using Delaunay = CGAL::Constrained_Delaunay_triangulation_2<Kernel, TriangulationData, CGAL::Exact_predicates_tag>;
+
+void next_stamp(SeamScratch& s, size_t size) {
+  if (s.stamp.size() < size) s.stamp.assign(size, 0);
+  if (++s.current == 0) {
+    std::fill(s.stamp.begin(), s.stamp.end(), 0);
+    s.current = 1;
+  }
+}
+
+// Flood fill from a's boundary: the triangles of `a` within d_c of `b`, connected to the boundary.
+void find_seam_triangles(const MeshView& a, const MeshView& b, float distance, SeamScratch& s) {
+  const DepthMesh& mesh = *a.mesh;
+  next_stamp(s, mesh.triangles.size() * 2);
+  s.queue.clear();
+  s.taken.clear();
+  auto visit = [&](int id) {
+    if (s.stamp[id] == s.current) return;
+    s.stamp[id] = s.current;
+    const int cell = cell_of(id);
+    if (!(mesh.triangles[cell] & bit_of(id))) return;
+    if (!has_triangle_near(b, triangle_centre(mesh, cell, bit_of(id)), distance)) return;
+    s.queue.push_back(id);
+    s.taken.push_back(id);
+  };
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    if (!mesh.triangles[cell]) continue;
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) visit(triangle_id(cell, bit));
+    }
+  }
+  while (!s.queue.empty()) {
+    const int id = s.queue.back();
+    s.queue.pop_back();
+    const int cell = cell_of(id), u = cell % mesh.width, v = cell / mesh.width;
+    if (bit_of(id) == kUpperTriangle) {
+      visit(triangle_id(cell, kLowerTriangle));
+      if (v > 0) visit(triangle_id(cell - mesh.width, kLowerTriangle));
+      if (u > 0) visit(triangle_id(cell - 1, kLowerTriangle));
+    } else {
+      visit(triangle_id(cell, kUpperTriangle));
+      if (v + 2 < mesh.height) visit(triangle_id(cell + mesh.width, kUpperTriangle));
+      if (u + 2 < mesh.width) visit(triangle_id(cell + 1, kUpperTriangle));
+    }
+  }
+}
+
+// Does any triangle of `mesh` use pixel p as a vertex?
+bool pixel_has_triangle(const DepthMesh& mesh, int p) {
+  const int u = p % mesh.width, v = p / mesh.width;
+  const auto bits = [&](int du, int dv) -> std::uint8_t {
+    const int cu = u + du, cv = v + dv;
+    return cu >= 0 && cv >= 0 && cu < mesh.width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * mesh.width + cu] : 0;
+  };
+  // p is vertex p of the upper triangle of its own cell, r of both triangles of the cell to its
+  // left, b of both of the cell above, and d of the lower triangle of the cell above-left.
+  return (bits(0, 0) & kUpperTriangle) || bits(-1, 0) || bits(0, -1) || (bits(-1, -1) & kLowerTriangle);
+}
+
+// Clears the taken triangles from the mesh and adds their pixels to the seam's vertex list, each
+// once. A pixel that no kept triangle uses any more is left out when the other mesh owns the
+// surface there (as in FRBR): inside the seam, where the two meshes' boundaries overlap by a
+// triangle or two, only one layer of points is triangulated, so the seam does not zigzag between
+// two noisy layers.
+void take_triangles(const MeshView& view, const MeshView& other, float distance, SeamScratch& s, Seam& seam) {
+  DepthMesh& mesh = *view.mesh;
+  for (int id : s.taken) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
+  next_stamp(s, mesh.triangles.size() * 2);
+  if (s.seam_index.size() < mesh.triangles.size()) s.seam_index.resize(mesh.triangles.size());
+  for (int id : s.taken) {
+    int pixels[3];
+    triangle_pixels(cell_of(id), mesh.width, bit_of(id), pixels);
+    for (int p : pixels) {
+      if (s.stamp[p] == s.current) continue;
+      s.stamp[p] = s.current;
+      if (!pixel_has_triangle(mesh, p) && view.interior != nullptr) {
+        if (owner_is_other(view, p, other, mesh.points[p]) && has_triangle_near(other, mesh.points[p], distance)) continue;
+      }
+      s.seam_index[p] = static_cast<int>(seam.vertices.size());
+      seam.vertices.push_back({view.camera, p});
+    }
+  }
+  seam.triangles_taken += static_cast<int>(s.taken.size());
+}
+
+// The edges of kept triangles between two seam vertices of the same mesh: the seam must contain
+// them exactly, or its triangles would cut across the kept triangles they border.
+void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex, int end_vertex, const Seam& seam,
+                    std::vector<std::pair<int, int>>& edges) {
+  const DepthMesh& mesh = *view.mesh;
+  auto seam_vertex = [&](int pixel) {
+    if (s.stamp[pixel] != s.current) return -1;
+    const int index = s.seam_index[pixel];
+    return index >= first_vertex && index < end_vertex && seam.vertices[index].pixel == pixel ? index : -1;
+  };
+  for (int index = first_vertex; index < end_vertex; ++index) {
+    const int p = seam.vertices[index].pixel;
+    const int u = p % mesh.width, v = p / mesh.width;
+    // The cells around p: their existing triangles' edges from p.
+    for (int dv = -1; dv <= 0; ++dv) {
+      for (int du = -1; du <= 0; ++du) {
+        const int cu = u + du, cv = v + dv;
+        if (cu < 0 || cv < 0 || cu >= mesh.width - 1 || cv >= mesh.height - 1) continue;
+        const int cell = cv * mesh.width + cu;
+        for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+          if (!(mesh.triangles[cell] & bit)) continue;
+          int pixels[3];
+          triangle_pixels(cell, mesh.width, bit, pixels);
+          for (int k = 0; k < 3; ++k) {
+            if (pixels[k] != p) continue;
+            for (int other : {pixels[(k + 1) % 3], pixels[(k + 2) % 3]}) {
+              const int j = seam_vertex(other);
+              if (j > index) edges.emplace_back(index, j);
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return false;
+  const DepthMesh& mesh = *view.mesh;
+  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+  if (u < 0 || v < 0 || u >= mesh.width - 1 || v >= mesh.height - 1) return false;
+  const int cell = v * mesh.width + u;
+  const TriangleBit bit = (pixel.x() - u) + (pixel.y() - v) < 1.0f ? kUpperTriangle : kLowerTriangle;
+  if (!(mesh.triangles[cell] & bit)) return false;
+  int pixels[3];
+  triangle_pixels(cell, mesh.width, bit, pixels);
+  const float mean_depth = (mesh.depth[pixels[0]] + mesh.depth[pixels[1]] + mesh.depth[pixels[2]]) / 3.0f;
+  return std::abs(mean_depth - depth) < tolerance;
+}
+
+Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& centre_a, const MeshView& b, int camera_b,
+                     const Eigen::Vector3f& centre_b, const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b) {
+  Seam seam;
+  // Both seams are found against the meshes as FRBR left them, then taken out together.
+  find_seam_triangles(a, b, options.clipping_distance, scratch_a);
+  find_seam_triangles(b, a, options.clipping_distance, scratch_b);
+  // Both meshes lose their seam triangles before either's points are chosen, so "kept" means
+  // kept after clipping.
+  for (int id : scratch_a.taken) a.mesh->triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
+  for (int id : scratch_b.taken) b.mesh->triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
+  take_triangles(a, b, options.ownership_distance, scratch_a, seam);
+  const int a_end = static_cast<int>(seam.vertices.size());
+  take_triangles(b, a, options.ownership_distance, scratch_b, seam);
+  std::vector<std::pair<int, int>> constraints;
+  add_kept_edges(a, scratch_a, 0, a_end, seam, constraints);
+  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, constraints);
+  (void)camera_a;
+  (void)camera_b;
+  if (seam.vertices.size() < 3) return seam;
+
+  auto position = [&](const PixelVertex& v) -> const Eigen::Vector3f& {
+    return (v.camera == camera_a ? a.mesh : b.mesh)->points[v.pixel];
+  };
+
+  // The virtual camera halfway between the two.
+  const Eigen::Quaternionf rotation_a(a.depth_from_world.linear().transpose());
+  const Eigen::Quaternionf rotation_b(b.depth_from_world.linear().transpose());
+  const Eigen::Matrix3f world_from_virtual = rotation_a.slerp(0.5f, rotation_b).toRotationMatrix();
+  const Eigen::Vector3f viewpoint = 0.5f * (centre_a + centre_b);
+
+  std::vector<std::pair<Kernel::Point_2, SeamInfo>> points;
+  points.reserve(seam.vertices.size());
+  bool behind = false;
+  for (size_t i = 0; i < seam.vertices.size(); ++i) {
+    const Eigen::Vector3f q = world_from_virtual.transpose() * (position(seam.vertices[i]) - viewpoint);
+    if (q.z() < 0.05f) {
+      behind = true;
+      break;
+    }
+    points.emplace_back(Kernel::Point_2(q.x() / q.z(), q.y() / q.z()), SeamInfo{static_cast<int>(i)});
+  }
+  if (behind) {
+    // PCA plane of the seam (the paper's projection).
+    Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+    for (const PixelVertex& v : seam.vertices) mean += position(v);
+    mean /= static_cast<float>(seam.vertices.size());
+    Eigen::Matrix3f covariance = Eigen::Matrix3f::Zero();
+    for (const PixelVertex& v : seam.vertices) {
+      const Eigen::Vector3f d = position(v) - mean;
+      covariance += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> pca(covariance);
+    Eigen::Vector3f e1 = pca.eigenvectors().col(2);
+    const Eigen::Vector3f e2 = pca.eigenvectors().col(1);
+    // Make (e1, e2) a frame seen from behind by the cameras, like image axes (x right, y down):
+    // then the faces' order is flipped below exactly as for the virtual camera.
+    if (e1.cross(e2).dot(viewpoint - mean) > 0) e1 = -e1;
+    points.clear();
+    for (size_t i = 0; i < seam.vertices.size(); ++i) {
+      const Eigen::Vector3f d = position(seam.vertices[i]) - mean;
+      points.emplace_back(Kernel::Point_2(d.dot(e1), d.dot(e2)), SeamInfo{static_cast<int>(i)});
+    }
+    seam.used_pca = true;
+  }
+
+  Delaunay triangulation;
+  triangulation.insert(points.begin(), points.end());
+  std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
+  for (auto v = triangulation.finite_vertices_begin(); v != triangulation.finite_vertices_end(); ++v) handle[v->info().index] = v;
+  for (const auto& [i, j] : constraints) {
+    // Two seam vertices at one 2-D position share a handle (the other is not in the triangulation).
+    if (handle[i] != Delaunay::Vertex_handle() && handle[j] != Delaunay::Vertex_handle() && handle[i] != handle[j]) {
+      triangulation.insert_constraint(handle[i], handle[j]);
+    }
+  }
+  const float max_edge2 = options.max_edge * options.max_edge;
+  for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
+    int index[3];
+    for (int k = 0; k < 3; ++k) index[k] = face->vertex(k)->info().index;
+    if (index[0] < 0 || index[1] < 0 || index[2] < 0) continue;  // at a crossing of two constraints
+    const Eigen::Vector3f& p0 = position(seam.vertices[index[0]]);
+    const Eigen::Vector3f& p1 = position(seam.vertices[index[1]]);
+    const Eigen::Vector3f& p2 = position(seam.vertices[index[2]]);
+    if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) continue;
+    const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
+    // Over a kept triangle of either mesh: the seam would double the surface there.
+    if (covered_by_triangle(a, centroid, options.clipping_distance) || covered_by_triangle(b, centroid, options.clipping_distance)) continue;
+    // CGAL's faces are counter-clockwise in the 2-D coordinates; with image-like axes (y down) a
+    // face towards the viewer is clockwise there, like the SDC triangles. Flipping every face
+    // orients the whole seam consistently, slivers included (a 3-D normal test would not).
+    seam.triangles.emplace_back(index[0], index[2], index[1]);
+  }
+  return seam;
+}
+
+}  // namespace zipfusion

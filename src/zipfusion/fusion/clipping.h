@@ -1,0 +1,60 @@
+#pragma once
+//! \file
+//! Mesh clipping by re-triangulation (paper Section III-D): after redundancy removal two meshes
+//! face each other across a gap of about d_r. The triangles of each within d_c (> d_r) of the other
+//! are taken out, their vertices (each pixel once) are projected to 2-D and triangulated by
+//! Delaunay (CGAL); triangles with an edge longer than max_edge, or lying over a kept triangle of
+//! either mesh, are dropped. What remains stitches the two meshes into one.
+//!
+//! Projection: the paper projects onto the seam's PCA plane. A seam that wraps around a body is
+//! not planar, so the seam is projected instead through a virtual camera halfway between the two
+//! cameras (centre at the midpoint, rotation halfway): every seam point is seen by both cameras,
+//! so this projection is one-to-one over the seam however it curves, and no triangle folds. The
+//! PCA plane remains the fallback when a point lies behind the virtual camera (cameras facing each
+//! other).
+
+#include <vector>
+
+#include "zipfusion/fusion/redundancy.h"
+
+namespace zipfusion {
+
+//! A vertex of the final mesh: a pixel of a camera's depth mesh.
+struct PixelVertex {
+  int camera = 0;
+  int pixel = 0;
+  friend bool operator==(const PixelVertex&, const PixelVertex&) = default;
+};
+
+struct SeamOptions {
+  float clipping_distance = 0.03f;  // d_c, metres
+  float max_edge = 0.04f;           // longest edge of a seam triangle, metres
+  float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close
+};
+
+struct Seam {
+  std::vector<PixelVertex> vertices;
+  std::vector<Eigen::Vector3i> triangles;  // indices into `vertices`, facing the cameras
+  int triangles_taken = 0;                 // original triangles replaced by the seam
+  bool used_pca = false;                   // the PCA fallback projection was used
+};
+
+//! Scratch space of one camera for clipping, reused across frames.
+struct SeamScratch {
+  std::vector<std::uint32_t> stamp;  // per triangle id, then per pixel
+  std::uint32_t current = 0;
+  std::vector<int> queue;
+  std::vector<int> taken;
+  std::vector<int> seam_index;  // per pixel: index in Seam::vertices (valid where stamped)
+};
+
+//! Element function: is point p covered by an existing triangle of `view` (the triangle under its
+//! projection, with a mean depth within `tolerance` of p's)?
+bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance);
+
+//! Takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out of both meshes
+//! and returns the triangles that stitch them. Camera indices label the seam's vertices.
+Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& centre_a, const MeshView& b, int camera_b,
+                     const Eigen::Vector3f& centre_b, const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b);
+
+}  // namespace zipfusion

@@ -1,0 +1,235 @@
+#include "zipfusion/fusion/redundancy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace zipfusion {
+namespace {
+
+// Marks triangle `id` for the next worklist once per pass.
+void enqueue(FrbrScratch& s, int id) {
+  if (s.stamp[id] == s.current_stamp) return;
+  s.stamp[id] = s.current_stamp;
+  s.next.push_back(id);
+}
+
+// The (up to three) edge neighbours of a triangle, whether they exist or not; returns how many.
+int neighbour_ids(int id, int width, int height, int out[3]) {
+  const int cell = cell_of(id);
+  const int u = cell % width, v = cell / width;
+  int n = 0;
+  if (bit_of(id) == kUpperTriangle) {
+    out[n++] = triangle_id(cell, kLowerTriangle);
+    if (v > 0) out[n++] = triangle_id(cell - width, kLowerTriangle);
+    if (u > 0) out[n++] = triangle_id(cell - 1, kLowerTriangle);
+  } else {
+    out[n++] = triangle_id(cell, kUpperTriangle);
+    if (v + 2 < height) out[n++] = triangle_id(cell + width, kUpperTriangle);
+    if (u + 2 < width) out[n++] = triangle_id(cell + 1, kUpperTriangle);
+  }
+  return n;
+}
+
+// One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
+// neighbours (the new boundary) for the next sweep. Returns the number removed.
+int sweep(const MeshView& a, const MeshView& b, float distance, FrbrScratch& s) {
+  DepthMesh& mesh = *a.mesh;
+  s.removals.clear();
+  for (int id : s.worklist) {
+    const int cell = cell_of(id);
+    const TriangleBit bit = bit_of(id);
+    if (!is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
+    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
+    if (owner_is_other(a, cell, b, centre) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
+  }
+  ++s.current_stamp;
+  s.next.clear();
+  for (int id : s.removals) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
+  for (int id : s.removals) {
+    int neighbours[3];
+    const int n = neighbour_ids(id, mesh.width, mesh.height, neighbours);
+    for (int k = 0; k < n; ++k) {
+      if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) enqueue(s, neighbours[k]);
+    }
+  }
+  s.worklist.swap(s.next);
+  return static_cast<int>(s.removals.size());
+}
+
+void start_worklist(const DepthMesh& mesh, FrbrScratch& s) {
+  const size_t ids = mesh.triangles.size() * 2;
+  if (s.stamp.size() < ids) s.stamp.assign(ids, 0);
+  ++s.current_stamp;
+  s.worklist.clear();
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    if (!mesh.triangles[cell]) continue;
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) s.worklist.push_back(triangle_id(cell, bit));
+    }
+  }
+}
+
+}  // namespace
+
+// Does `b` see the surface at point p (in a's cell `cell`) better than `a`? Both distances are
+// taken at p itself, so the two meshes agree on every point and meet without a gap.
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
+  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+  if (u < 0 || v < 0 || u >= b.mesh->width || v >= b.mesh->height) return false;
+  const float mine = (*a.interior)[cell], theirs = (*b.interior)[v * b.mesh->width + u];
+  return theirs > mine || (theirs == mine && b.camera < a.camera);
+}
+
+void compute_interior_distance(const DepthMesh& mesh, int close_cells, std::vector<float>& interior) {
+  cv::Mat mask(mesh.height, mesh.width, CV_8UC1);
+  for (int i = 0; i < mesh.width * mesh.height; ++i) mask.data[i] = mesh.triangles[i] ? 255 : 0;
+  if (close_cells > 0) {
+    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
+    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
+  }
+  cv::Mat distance;
+  cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
+  interior.resize(static_cast<size_t>(mesh.width) * mesh.height);
+  for (int i = 0; i < mesh.width * mesh.height; ++i) interior[i] = mesh.triangles[i] ? distance.ptr<float>()[i] : 0.0f;
+}
+
+bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return false;
+  const DepthMesh& mesh = *view.mesh;
+  const int window = std::clamp(static_cast<int>(std::ceil(distance * view.intrinsics.fx / depth)), 1, max_window);
+  // Triangle centres sit at 1/3 and 2/3 of a cell, so the cells whose index is within the window
+  // of floor(pixel) hold every centre within `window` pixels.
+  const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
+  const int u0 = std::max(cu - window, 0), u1 = std::min(cu + window, mesh.width - 2);
+  const int v0 = std::max(cv - window, 0), v1 = std::min(cv + window, mesh.height - 2);
+  const float distance2 = distance * distance;
+  for (int v = v0; v <= v1; ++v) {
+    for (int u = u0; u <= u1; ++u) {
+      const int cell = v * mesh.width + u;
+      const std::uint8_t bits = mesh.triangles[cell];
+      if (!bits) continue;
+      if ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) return true;
+      if ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2) return true;
+    }
+  }
+  return false;
+}
+
+int nearest_triangle(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return -1;
+  const DepthMesh& mesh = *view.mesh;
+  const int window = std::clamp(static_cast<int>(std::ceil(distance * view.intrinsics.fx / depth)), 1, max_window);
+  const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
+  const int u0 = std::max(cu - window, 0), u1 = std::min(cu + window, mesh.width - 2);
+  const int v0 = std::max(cv - window, 0), v1 = std::min(cv + window, mesh.height - 2);
+  float best = distance * distance;
+  int best_id = -1;
+  for (int v = v0; v <= v1; ++v) {
+    for (int u = u0; u <= u1; ++u) {
+      const int cell = v * mesh.width + u;
+      const std::uint8_t bits = mesh.triangles[cell];
+      if (!bits) continue;
+      for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+        if (!(bits & bit)) continue;
+        const float d2 = (triangle_centre(mesh, cell, bit) - p).squaredNorm();
+        if (d2 < best) {
+          best = d2;
+          best_id = triangle_id(cell, bit);
+        }
+      }
+    }
+  }
+  return best_id;
+}
+
+double overlap_share(const MeshView& a, const MeshView& b, float distance) {
+  const DepthMesh& mesh = *a.mesh;
+  int total = 0, near = 0;
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    const std::uint8_t bits = mesh.triangles[cell];
+    if (!bits) continue;
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (!(bits & bit)) continue;
+      ++total;
+      near += has_triangle_near(b, triangle_centre(mesh, cell, bit), distance);
+    }
+  }
+  return total ? static_cast<double>(near) / total : 0.0;
+}
+
+FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, FrbrScratch& scratch_a,
+                                       FrbrScratch& scratch_b) {
+  FrbrResult result;
+  start_worklist(*a.mesh, scratch_a);
+  start_worklist(*b.mesh, scratch_b);
+  while (true) {
+    const int removed_a = sweep(a, b, redundancy_distance, scratch_a);
+    const int removed_b = sweep(b, a, redundancy_distance, scratch_b);
+    ++result.iterations;
+    result.removed_a += removed_a;
+    result.removed_b += removed_b;
+    if (removed_a == 0 && removed_b == 0) break;
+  }
+  return result;
+}
+
+void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse) {
+  const int step = 1 << level;
+  coarse.width = (fine.width - 1) / step + 1;
+  coarse.height = (fine.height - 1) / step + 1;
+  const int count = coarse.width * coarse.height;
+  coarse.depth.resize(count);
+  coarse.points.resize(count);
+  coarse.triangles.resize(count);
+  for (int v = 0; v < coarse.height; ++v) {
+    for (int u = 0; u < coarse.width; ++u) {
+      const int source = v * step * fine.width + u * step;
+      coarse.depth[v * coarse.width + u] = fine.depth[source];
+      coarse.points[v * coarse.width + u] = fine.points[source];
+    }
+  }
+  const float threshold = max_depth_jump * static_cast<float>(step);
+  for (int i = 0; i < count; ++i) coarse.triangles[i] = sdc_cell(i, coarse.depth.data(), coarse.width, coarse.height, threshold);
+}
+
+int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const DepthMesh& coarse, DepthMesh& fine) {
+  // A coarse cell covers 2×2 fine cells. Its upper triangle (x + y < 2 in fine units) covers both
+  // triangles of fine cell (0,0) and the upper ones of (1,0) and (0,1); its lower triangle the
+  // lower ones of (1,0) and (0,1) and both of (1,1).
+  int cleared = 0;
+  auto clear = [&](int fu, int fv, std::uint8_t bits) {
+    if (fu >= fine.width - 1 || fv >= fine.height - 1) return;
+    std::uint8_t& cell = fine.triangles[fv * fine.width + fu];
+    cleared += ((cell & bits & kUpperTriangle) ? 1 : 0) + ((cell & bits & kLowerTriangle) ? 1 : 0);
+    cell &= static_cast<std::uint8_t>(~bits);
+  };
+  const int cells = coarse.width * coarse.height;
+  for (int i = 0; i < cells; ++i) {
+    const std::uint8_t removed = coarse_before[i] & static_cast<std::uint8_t>(~coarse.triangles[i]);
+    if (!removed) continue;
+    const int fu = 2 * (i % coarse.width), fv = 2 * (i / coarse.width);
+    if (removed & kUpperTriangle) {
+      clear(fu, fv, kUpperTriangle | kLowerTriangle);
+      clear(fu + 1, fv, kUpperTriangle);
+      clear(fu, fv + 1, kUpperTriangle);
+    }
+    if (removed & kLowerTriangle) {
+      clear(fu + 1, fv, kLowerTriangle);
+      clear(fu, fv + 1, kLowerTriangle);
+      clear(fu + 1, fv + 1, kUpperTriangle | kLowerTriangle);
+    }
+  }
+  return cleared;
+}
+
+}  // namespace zipfusion

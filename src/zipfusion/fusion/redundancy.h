@@ -1,0 +1,96 @@
+#pragma once
+//! \file
+//! Removal of redundant overlapping triangles (paper Section III-C and Appendix): the "Fast
+//! Redundant Boundary Removal" (FRBR) iteration on the SDC bit matrices of two cameras, its
+//! coarse-to-fine driver, and the detection of overlapping camera pairs.
+//!
+//! A boundary triangle t of mesh A is redundant with respect to mesh B when B holds the same
+//! surface (the triangle of B whose centre is nearest to t's lies within the redundancy distance
+//! d_r) and B sees it better. Neighbours are found by projecting the centre into camera B and
+//! searching a small window of B's cells (Fig. 5 of the paper). FRBR peels one boundary layer of
+//! A, then one of B, and repeats until neither changes.
+//!
+//! "Sees it better" goes beyond the paper, whose test is only "any triangle of B within d_r":
+//! a mesh's triangles far inside its own coverage (in pixels from its silhouette or a large hole)
+//! are seen frontally and near, those at its border at grazing angles. Each triangle carries that
+//! distance (`interior`, computed once per frame with small holes closed), and the mesh with the
+//! larger one keeps the surface; ties go to the lower camera index. With the paper's test the
+//! meshes eat into the overlap from both sides and stop d_r apart; where both end at the same
+//! place (a silhouette both see, or one camera seeing all the other sees) each border is redundant
+//! against the other's next ring and the two peel each other away. With ownership the overlap is
+//! split where both see equally well, the meshes meet there with no gap, and one mesh is never
+//! removed where the other does not take over.
+
+#include <cstdint>
+#include <vector>
+
+#include "zipfusion/core/camera.h"
+#include "zipfusion/core/geometry.h"
+#include "zipfusion/depth/sdc_mesh.h"
+
+namespace zipfusion {
+
+//! One camera's mesh at one pyramid level and how to project into it.
+struct MeshView {
+  DepthMesh* mesh = nullptr;
+  Intrinsics intrinsics;       // of this level (focal length and centre scaled by 2^-level)
+  Rigid3f depth_from_world = Rigid3f::Identity();
+  const std::vector<float>* interior = nullptr;  // per cell: distance to the mesh's border, cells
+  int camera = 0;                                 // breaks ownership ties
+};
+
+//! Per cell of `mesh`: distance (in cells) to the nearest cell without triangles, after closing
+//! holes up to `close_cells` wide (noise dropouts do not make a border). 0 where no triangle.
+void compute_interior_distance(const DepthMesh& mesh, int close_cells, std::vector<float>& interior);
+
+//! Triangle id: cell index · 2 + (0 upper, 1 lower).
+inline int triangle_id(int cell, TriangleBit bit) { return cell * 2 + (bit == kLowerTriangle ? 1 : 0); }
+inline int cell_of(int id) { return id >> 1; }
+inline TriangleBit bit_of(int id) { return (id & 1) ? kLowerTriangle : kUpperTriangle; }
+
+//! Element function: does `view` hold a triangle whose centre is within `distance` of point p?
+//! Searches the cells around p's projection, wide enough to cover `distance` at p's depth (at
+//! most max_window cells each way).
+bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 8);
+
+//! Element function: the triangle of `view` whose centre is nearest to p, if one lies within
+//! `distance` (searched as in has_triangle_near); returns its id or −1.
+int nearest_triangle(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 8);
+
+//! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
+//! than `a` (larger interior distance at p in b's image than at the cell in a's; ties to the
+//! lower camera index)? Both meshes evaluate the same point the same way, so they meet without a
+//! gap.
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p);
+
+//! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance`.
+double overlap_share(const MeshView& a, const MeshView& b, float distance);
+
+//! Scratch space of one camera for FRBR, reused across frames.
+struct FrbrScratch {
+  std::vector<int> worklist, next, removals;
+  std::vector<std::uint32_t> stamp;
+  std::uint32_t current_stamp = 0;
+};
+
+struct FrbrResult {
+  int removed_a = 0;
+  int removed_b = 0;
+  int iterations = 0;
+};
+
+//! Runs FRBR between two views until neither mesh changes; clears redundant triangles' bits.
+//! Not thread-safe for views that share a mesh; distinct pairs may run in parallel.
+FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, FrbrScratch& scratch_a,
+                                       FrbrScratch& scratch_b);
+
+//! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (depth and world
+//! points), triangulated by SDC with the depth-jump threshold scaled by 2^level.
+void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse);
+
+//! Clears in `fine` (one level finer than `coarse`) the triangles covered by the triangles that
+//! were present in `coarse_before` but are gone from `coarse` (removed at the coarse level).
+//! Returns the number of fine triangles cleared.
+int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const DepthMesh& coarse, DepthMesh& fine);
+
+}  // namespace zipfusion

@@ -1,0 +1,224 @@
+#include "zipfusion/fusion/zipper.h"
+
+#include <chrono>
+#include <cmath>
+#include <unordered_set>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/core/parallel.h"
+
+namespace zipfusion {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+Intrinsics level_intrinsics(const Intrinsics& k, int level) {
+  const double scale = 1.0 / (1 << level);
+  Intrinsics out = k;
+  out.width = (k.width - 1) / (1 << level) + 1;
+  out.height = (k.height - 1) / (1 << level) + 1;
+  out.fx *= scale;
+  out.fy *= scale;
+  out.cx *= scale;
+  out.cy *= scale;
+  out.has_distortion = false;
+  return out;
+}
+
+}  // namespace
+
+void ZipperOptions::validate() const {
+  if (!(redundancy_distance_m > 0 && redundancy_distance_m < 0.5)) throw InvalidInput("redundancy-distance: must be in (0, 0.5) metres");
+  if (coarse_levels < 0 || coarse_levels > 4) throw InvalidInput("coarse-levels: must be in [0, 4]");
+  if (!(coarse_shrink > 0 && coarse_shrink <= 1)) throw InvalidInput("coarse-shrink: must be in (0, 1]");
+  if (!(clipping_distance_m > 0 && clipping_distance_m < 0.5)) throw InvalidInput("clipping-distance: must be in (0, 0.5) metres");
+  if (hole_closing_px < 0 || hole_closing_px > 32) throw InvalidInput("hole-closing: must be in [0, 32] pixels");
+  if (!(max_seam_edge_m > 0 && max_seam_edge_m < 0.5)) throw InvalidInput("max-seam-edge: must be in (0, 0.5) metres");
+  if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("min-overlap: must be in [0, 1)");
+}
+
+std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<std::pair<int, int>>& pairs) {
+  std::vector<std::vector<std::pair<int, int>>> rounds;
+  for (const auto& pair : pairs) {
+    bool placed = false;
+    for (auto& round : rounds) {
+      bool clash = false;
+      for (const auto& other : round) {
+        clash = clash || other.first == pair.first || other.first == pair.second || other.second == pair.first || other.second == pair.second;
+      }
+      if (!clash) {
+        round.push_back(pair);
+        placed = true;
+        break;
+      }
+    }
+    if (!placed) rounds.push_back({pair});
+  }
+  return rounds;
+}
+
+ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch) {
+  ZipperResult result;
+  const int camera_count = static_cast<int>(cameras.size());
+  const int levels = options.coarse_levels;
+  scratch.cameras.resize(camera_count);
+  std::vector<int> active;
+  for (int c = 0; c < camera_count; ++c) {
+    if (cameras[c].mesh != nullptr) active.push_back(c);
+  }
+
+  // Views of every camera at every level: level 0 is the full-resolution mesh itself.
+  std::vector<std::vector<MeshView>> views(camera_count, std::vector<MeshView>(levels + 1));
+  Clock::time_point t = Clock::now();
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
+    ZipperScratch::Camera& s = scratch.cameras[c];
+    s.levels.resize(levels);
+    s.bits_before.resize(levels);
+    s.interior.resize(levels + 1);
+    const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
+    compute_interior_distance(*cameras[c].mesh, options.hole_closing_px, s.interior[0]);
+    views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.interior[0], c};
+    for (int level = 1; level <= levels; ++level) {
+      downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
+      compute_interior_distance(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level]);
+      views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world,
+                         &s.interior[level], c};
+    }
+  }, options.num_threads);
+  result.stats.pyramid_ms = ms_since(t);
+
+  // Overlapping pairs, judged on the coarsest level.
+  t = Clock::now();
+  std::vector<std::pair<int, int>> candidates;
+  for (size_t i = 0; i < active.size(); ++i) {
+    for (size_t j = i + 1; j < active.size(); ++j) candidates.emplace_back(active[i], active[j]);
+  }
+  std::vector<char> overlaps(candidates.size(), 0);
+  const float d_r = static_cast<float>(options.redundancy_distance_m);
+  parallel_for(0, static_cast<int>(candidates.size()), [&](int i) {
+    const auto [a, b] = candidates[i];
+    const double share = std::max(overlap_share(views[a][levels], views[b][levels], d_r), overlap_share(views[b][levels], views[a][levels], d_r));
+    overlaps[i] = share >= options.min_overlap_share;
+  }, options.num_threads);
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (overlaps[i]) result.pairs.push_back(candidates[i]);
+  }
+  result.stats.pairs = static_cast<int>(result.pairs.size());
+  const auto rounds = schedule_pairs(result.pairs);
+  result.stats.overlap_ms = ms_since(t);
+
+  // Coarse to fine FRBR.
+  t = Clock::now();
+  int full_resolution_before = 0;
+  for (int c : active) full_resolution_before += cameras[c].mesh->triangle_count();
+  for (int level = levels; level >= 0; --level) {
+    if (level < levels) {
+      parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+        const int c = active[i];
+        propagate_removals(scratch.cameras[c].bits_before[level], *views[c][level + 1].mesh, *views[c][level].mesh);
+      }, options.num_threads);
+    }
+    if (level > 0) {
+      for (int c : active) scratch.cameras[c].bits_before[level - 1] = views[c][level].mesh->triangles;
+    }
+    const float distance = d_r * static_cast<float>(std::pow(options.coarse_shrink, level));
+    for (const auto& round : rounds) {
+      parallel_for(0, static_cast<int>(round.size()), [&](int i) {
+        const auto [a, b] = round[i];
+        remove_redundant_boundaries(views[a][level], views[b][level], distance, scratch.cameras[a].frbr, scratch.cameras[b].frbr);
+      }, options.num_threads);
+    }
+  }
+  int full_resolution_after = 0;
+  for (int c : active) full_resolution_after += cameras[c].mesh->triangle_count();
+  result.stats.redundant_removed = full_resolution_before - full_resolution_after;
+  result.stats.redundancy_ms = ms_since(t);
+
+  // Clipping: seams per pair.
+  t = Clock::now();
+  std::vector<Seam> seams(result.pairs.size());
+  const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
+                                 .max_edge = static_cast<float>(options.max_seam_edge_m),
+                                 .ownership_distance = d_r};
+  for (const auto& round : rounds) {
+    parallel_for(0, static_cast<int>(round.size()), [&](int i) {
+      const auto [a, b] = round[i];
+      const size_t pair_index = std::find(result.pairs.begin(), result.pairs.end(), round[i]) - result.pairs.begin();
+      seams[pair_index] = clip_and_stitch(views[a][0], a, cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0], b,
+                                          cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
+                                          scratch.cameras[a].seam, scratch.cameras[b].seam);
+    }, options.num_threads);
+  }
+  for (const Seam& seam : seams) result.stats.seam_taken += seam.triangles_taken;
+  result.stats.clipping_ms = ms_since(t);
+
+  // Assembly: kept triangles and seam triangles over shared pixel vertices. A seam triangle may
+  // not reuse a directed edge that a kept (or earlier seam) triangle already has: that would put
+  // it on the same side of the edge as that triangle, overlapping it, and make the edge
+  // non-manifold. Only edges between seam vertices need checking.
+  t = Clock::now();
+  TriangleMesh& mesh = result.mesh;
+  for (int c : active) scratch.cameras[c].vertex_of_pixel.assign(cameras[c].mesh->triangles.size(), -1);
+  auto vertex = [&](int camera, int pixel) {
+    int& index = scratch.cameras[camera].vertex_of_pixel[pixel];
+    if (index < 0) {
+      index = static_cast<int>(mesh.positions.size());
+      mesh.positions.push_back(cameras[camera].mesh->points[pixel]);
+      mesh.colors.push_back(cameras[camera].colors ? (*cameras[camera].colors)[pixel] : Rgb8{128, 128, 128});
+    }
+    return index;
+  };
+  std::vector<std::vector<int>> seam_global(seams.size());
+  for (size_t i = 0; i < seams.size(); ++i) {
+    for (const PixelVertex& v : seams[i].vertices) seam_global[i].push_back(vertex(v.camera, v.pixel));
+  }
+  std::vector<char> is_seam_vertex(mesh.positions.size(), 0);
+  for (const auto& ids : seam_global) {
+    for (int id : ids) is_seam_vertex[id] = 1;
+  }
+  std::unordered_set<std::uint64_t> seam_edges;
+  auto directed = [](int from, int to) { return (static_cast<std::uint64_t>(from) << 32) | static_cast<std::uint32_t>(to); };
+  auto note_edges = [&](const Eigen::Vector3i& tri) {
+    for (int k = 0; k < 3; ++k) {
+      const int from = tri[k], to = tri[(k + 1) % 3];
+      if (from < static_cast<int>(is_seam_vertex.size()) && to < static_cast<int>(is_seam_vertex.size()) && is_seam_vertex[from] &&
+          is_seam_vertex[to]) {
+        seam_edges.insert(directed(from, to));
+      }
+    }
+  };
+  for (int c : active) {
+    const DepthMesh& m = *cameras[c].mesh;
+    const int cells = m.width * m.height;
+    for (int cell = 0; cell < cells; ++cell) {
+      const std::uint8_t bits = m.triangles[cell];
+      if (!bits) continue;
+      for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+        if (!(bits & bit)) continue;
+        int p[3];
+        triangle_pixels(cell, m.width, bit, p);
+        mesh.triangles.emplace_back(vertex(c, p[0]), vertex(c, p[1]), vertex(c, p[2]));
+        note_edges(mesh.triangles.back());
+      }
+    }
+  }
+  for (size_t i = 0; i < seams.size(); ++i) {
+    for (const Eigen::Vector3i& local : seams[i].triangles) {
+      const Eigen::Vector3i tri(seam_global[i][local[0]], seam_global[i][local[1]], seam_global[i][local[2]]);
+      if (seam_edges.count(directed(tri[0], tri[1])) || seam_edges.count(directed(tri[1], tri[2])) ||
+          seam_edges.count(directed(tri[2], tri[0]))) {
+        ++result.stats.seam_rejected;
+        continue;
+      }
+      mesh.triangles.push_back(tri);
+      note_edges(tri);
+      ++result.stats.seam_added;
+    }
+  }
+  result.stats.assemble_ms = ms_since(t);
+  return result;
+}
+
+}  // namespace zipfusion

@@ -1,0 +1,80 @@
+#pragma once
+//! \file
+//! Zippering (paper Sections III-C, III-D): the per-camera SDC meshes of one frame set become one
+//! connected mesh. For every overlapping camera pair: coarse-to-fine redundant boundary removal,
+//! then clipping by re-triangulation of the seam; finally the kept triangles and the seam
+//! triangles are assembled with shared vertices.
+//!
+//! Pairs are scheduled in rounds in which no camera appears twice; the pairs of a round run in
+//! parallel. Thread safety: one ZipperScratch per concurrent call.
+
+#include <vector>
+
+#include "zipfusion/core/mesh.h"
+#include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/fusion/clipping.h"
+#include "zipfusion/fusion/redundancy.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+
+struct ZipperOptions {
+  double redundancy_distance_m = 0.02;  // d_r (III-C): triangles closer than this to another camera's are redundant
+  int coarse_levels = 2;                // L (III-C2): FRBR starts on depth maps downsampled by 2^L
+  double coarse_shrink = 0.7;           // β (III-C2): d_r at level l is β^l·d_r
+  double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
+  int hole_closing_px = 3;              // holes up to 2·this+1 pixels wide do not count as borders for ownership
+  double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
+  double min_overlap_share = 0.002;     // a pair overlaps when this share of one mesh lies within d_r of the other
+  double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
+  int num_threads = 0;                  // 0 = all hardware threads
+
+  void validate() const;  // throws InvalidInput naming the field
+};
+
+//! One camera's input: its full-resolution mesh (modified: removed triangles' bits are cleared),
+//! colours per pixel, and its model.
+struct ZipperCamera {
+  DepthMesh* mesh = nullptr;  // null: the camera has no depth in this frame set
+  const std::vector<Rgb8>* colors = nullptr;
+  const CameraModel* model = nullptr;
+};
+
+struct ZipperStats {
+  double pyramid_ms = 0;     // building the coarse levels
+  double overlap_ms = 0;     // finding overlapping pairs
+  double redundancy_ms = 0;  // FRBR at every level, with propagation
+  double clipping_ms = 0;    // seams: detection, Delaunay, filtering
+  double assemble_ms = 0;    // one mesh with shared vertices
+  int pairs = 0;
+  int redundant_removed = 0;  // full-resolution triangles removed as redundant (incl. propagated)
+  int seam_taken = 0;         // triangles replaced by seams
+  int seam_added = 0;         // seam triangles created
+  int seam_rejected = 0;      // seam triangles dropped for reusing a directed edge (overlap)
+};
+
+struct ZipperResult {
+  TriangleMesh mesh;
+  ZipperStats stats;
+  std::vector<std::pair<int, int>> pairs;  // the overlapping pairs found
+};
+
+//! Scratch space reused across frames.
+struct ZipperScratch {
+  struct Camera {
+    std::vector<DepthMesh> levels;                       // levels 1..L (index level−1)
+    std::vector<std::vector<float>> interior;            // levels 0..L: distance to the border, cells
+    std::vector<std::vector<std::uint8_t>> bits_before;  // per level 1..L, bits before FRBR
+    FrbrScratch frbr;
+    SeamScratch seam;
+    std::vector<int> vertex_of_pixel;
+  };
+  std::vector<Camera> cameras;
+};
+
+ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch);
+
+//! Pairs grouped into rounds in which no camera appears twice (greedy edge colouring).
+std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<std::pair<int, int>>& pairs);
+
+}  // namespace zipfusion

@@ -1,0 +1,181 @@
+#include "zipfusion/fusion/zipper.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <numeric>
+#include <set>
+#include <functional>
+
+#include "zipfusion/core/mesh_distance.h"
+#include "zipfusion/core/rasterizer.h"
+#include "zipfusion/io/mesh_io.h"
+
+namespace zipfusion {
+namespace {
+
+const Intrinsics kKinect{.width = 640, .height = 480, .fx = 580, .fy = 580, .cx = 319.5, .cy = 239.5};
+
+// A scene rendered by several cameras and triangulated: the zipper's input.
+struct Scene {
+  std::vector<CameraModel> models;
+  std::vector<DepthMesh> meshes;
+  std::vector<std::vector<Rgb8>> colors;
+
+  void add_camera(const Rigid3d& world_from_depth, const TriangleMesh& surface) {
+    CameraModel model;
+    model.name = "cam" + std::to_string(models.size());
+    model.depth_intrinsics = kKinect;
+    model.world_from_depth = world_from_depth;
+    RenderBuffers buffers;
+    buffers.reset(kKinect, false);
+    rasterize_mesh(surface, kKinect, world_from_depth.inverse(), buffers);
+    Image<float> depth = buffers.depth;
+    for (float& z : depth.data) z = std::isinf(z) ? 0.0f : z;
+    DepthMesh mesh;
+    triangulate_sdc(depth, kKinect, world_from_depth.cast<float>(), {}, mesh);
+    models.push_back(model);
+    meshes.push_back(std::move(mesh));
+    colors.emplace_back(kKinect.width * kKinect.height, Rgb8{static_cast<unsigned char>(60 * models.size()), 100, 100});
+  }
+
+  ZipperResult zipper(const ZipperOptions& options = {}) {
+    std::vector<ZipperCamera> cameras;
+    for (size_t i = 0; i < meshes.size(); ++i) cameras.push_back({&meshes[i], &colors[i], &models[i]});
+    ZipperScratch scratch;
+    return zipper_meshes(cameras, options, scratch);
+  }
+};
+
+TriangleMesh grid_surface(int nu, int nv, const std::function<Eigen::Vector3f(float, float)>& point) {
+  TriangleMesh mesh;
+  for (int j = 0; j <= nv; ++j) {
+    for (int i = 0; i <= nu; ++i) mesh.positions.push_back(point(static_cast<float>(i) / nu, static_cast<float>(j) / nv));
+  }
+  for (int j = 0; j < nv; ++j) {
+    for (int i = 0; i < nu; ++i) {
+      const int a = j * (nu + 1) + i;
+      mesh.triangles.emplace_back(a, a + 1, a + nu + 2);
+      mesh.triangles.emplace_back(a, a + nu + 2, a + nu + 1);
+    }
+  }
+  return mesh;
+}
+
+double area(const TriangleMesh& mesh) {
+  double sum = 0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    sum += 0.5 * (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]).norm();
+  }
+  return sum;
+}
+
+int components(const TriangleMesh& mesh, int min_triangles) {
+  std::vector<int> parent(mesh.positions.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  std::function<int(int)> find = [&](int x) { return parent[x] == x ? x : parent[x] = find(parent[x]); };
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    parent[find(t[1])] = find(t[0]);
+    parent[find(t[2])] = find(t[0]);
+  }
+  std::map<int, int> sizes;
+  for (const Eigen::Vector3i& t : mesh.triangles) sizes[find(t[0])]++;
+  int count = 0;
+  for (const auto& [root, size] : sizes) count += size >= min_triangles;
+  return count;
+}
+
+int non_manifold_edges(const TriangleMesh& mesh) {
+  std::map<std::pair<int, int>, int> uses;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) uses[{std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])}]++;
+  }
+  int count = 0;
+  for (const auto& [edge, n] : uses) count += n > 2;
+  return count;
+}
+
+// Share of sample points of `truth` farther than `distance` from `mesh` (holes).
+double uncovered_share(const TriangleMesh& truth, const TriangleMesh& mesh, float distance) {
+  const MeshDistance query(mesh);
+  int uncovered = 0, total = 0;
+  for (const Eigen::Vector3f& p : truth.positions) {
+    ++total;
+    uncovered += query.closest(p, distance).triangle < 0;
+  }
+  return static_cast<double>(uncovered) / total;
+}
+
+TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
+  // A 1.2 m × 1.6 m wall at x = 0 seen by two cameras 2.2 m away, 40° apart.
+  const TriangleMesh wall = grid_surface(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
+  Scene scene;
+  for (double angle_deg : {-20.0, 20.0}) {
+    const double a = angle_deg * std::numbers::pi / 180;
+    scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), wall);
+  }
+  TriangleMesh separate;
+  std::vector<int> scratch;
+  for (const DepthMesh& m : scene.meshes) append_depth_mesh(m, {}, separate, scratch);
+  const ZipperResult result = scene.zipper();
+  ASSERT_EQ(result.pairs.size(), 1u);
+  const TriangleMesh& mesh = result.mesh;
+  if (getenv("ZF_DUMP")) { write_mesh("/tmp/plane.ply", mesh); printf("added %d rejected %d\n", result.stats.seam_added, result.stats.seam_rejected); }
+  // Interior sample points of the wall (5 cm from its border): no holes.
+  TriangleMesh interior;
+  for (const Eigen::Vector3f& p : wall.positions) {
+    if (std::abs(p.y()) < 0.55f && p.z() > 0.25f && p.z() < 1.75f) interior.positions.push_back(p);
+  }
+  EXPECT_LT(uncovered_share(interior, mesh, 0.005f), 0.001) << "holes in the zippered sheet";
+  // No double layer: the area is the wall's (the separate meshes are much larger).
+  const double true_area = 1.2 * 1.6;
+  EXPECT_GT(area(separate), 1.5 * true_area);
+  EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.03);
+  EXPECT_EQ(components(mesh, 50), 1);
+  EXPECT_EQ(non_manifold_edges(mesh), 0);
+}
+
+TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
+  // A cylinder of radius 0.15 m, 1.2 m high (a torso), four cameras around it.
+  const TriangleMesh cylinder = grid_surface(180, 60, [](float s, float t) {
+    const float a = 2 * std::numbers::pi_v<float> * s;
+    return Eigen::Vector3f(0.15f * std::cos(a), 0.15f * std::sin(a), 0.4f + 1.2f * t);
+  });
+  Scene scene;
+  for (int k = 0; k < 4; ++k) {
+    const double a = std::numbers::pi / 4 + k * std::numbers::pi / 2;
+    scene.add_camera(look_at({2.5 * std::cos(a), 2.5 * std::sin(a), 1.3}, {0, 0, 1.0}), cylinder);
+  }
+  const ZipperResult result = scene.zipper();
+  const TriangleMesh& mesh = result.mesh;
+  EXPECT_EQ(components(mesh, 50), 1);
+  EXPECT_EQ(non_manifold_edges(mesh), 0);
+  TriangleMesh interior;
+  for (const Eigen::Vector3f& p : cylinder.positions) {
+    if (p.z() > 0.45f && p.z() < 1.55f) interior.positions.push_back(p);
+  }
+  EXPECT_LT(uncovered_share(interior, mesh, 0.005f), 0.002) << "holes in the zippered cylinder";
+  const double true_area = 2 * std::numbers::pi * 0.15 * 1.2;
+  EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.05);
+}
+
+TEST(Zipper, PairsAreScheduledWithoutSharingACamera) {
+  const std::vector<std::pair<int, int>> ring = {{0, 1}, {1, 2}, {2, 3}, {0, 3}, {0, 2}};
+  const auto rounds = schedule_pairs(ring);
+  size_t scheduled = 0;
+  for (const auto& round : rounds) {
+    std::set<int> used;
+    for (const auto& [a, b] : round) {
+      EXPECT_TRUE(used.insert(a).second);
+      EXPECT_TRUE(used.insert(b).second);
+    }
+    scheduled += round.size();
+  }
+  EXPECT_EQ(scheduled, ring.size());
+  EXPECT_LE(rounds.size(), 3u);
+}
+
+}  // namespace
+}  // namespace zipfusion
