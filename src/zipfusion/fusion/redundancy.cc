@@ -7,6 +7,7 @@
 namespace zipfusion {
 namespace {
 
+
 // Marks triangle `id` for the next worklist once per pass.
 void enqueue(FrbrScratch& s, int id) {
   if (s.stamp[id] == s.current_stamp) return;
@@ -33,13 +34,14 @@ int neighbour_ids(int id, int width, int height, int out[3]) {
 
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
-int sweep(const MeshView& a, const MeshView& b, float distance, FrbrScratch& s) {
+int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   s.removals.clear();
   for (int id : s.worklist) {
     const int cell = cell_of(id);
     const TriangleBit bit = bit_of(id);
-    if (!is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
+    if (!(mesh.triangles[cell] & bit)) continue;
+    if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
     const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
     if (owner_is_other(a, cell, b, centre) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
@@ -57,7 +59,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, FrbrScratch& s) 
   return static_cast<int>(s.removals.size());
 }
 
-void start_worklist(const DepthMesh& mesh, FrbrScratch& s) {
+void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
   const size_t ids = mesh.triangles.size() * 2;
   if (s.stamp.size() < ids) s.stamp.assign(ids, 0);
   ++s.current_stamp;
@@ -66,7 +68,9 @@ void start_worklist(const DepthMesh& mesh, FrbrScratch& s) {
   for (int cell = 0; cell < cells; ++cell) {
     if (!mesh.triangles[cell]) continue;
     for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) s.worklist.push_back(triangle_id(cell, bit));
+      if ((mesh.triangles[cell] & bit) && (all_triangles || is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit))) {
+        s.worklist.push_back(triangle_id(cell, bit));
+      }
     }
   }
 }
@@ -85,17 +89,20 @@ bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen:
   return theirs > mine || (theirs == mine && b.camera < a.camera);
 }
 
-void compute_interior_distance(const DepthMesh& mesh, int close_cells, std::vector<float>& interior) {
+void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior) {
+  const int cells = mesh.width * mesh.height;
   cv::Mat mask(mesh.height, mesh.width, CV_8UC1);
-  for (int i = 0; i < mesh.width * mesh.height; ++i) mask.data[i] = mesh.triangles[i] ? 255 : 0;
+  for (int i = 0; i < cells; ++i) mask.data[i] = mesh.triangles[i] ? 255 : 0;
+  cv::Mat distance;
+  cv::distanceTransform(~mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
+  exterior.assign(distance.ptr<float>(), distance.ptr<float>() + cells);
   if (close_cells > 0) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
     cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
   }
-  cv::Mat distance;
   cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  interior.resize(static_cast<size_t>(mesh.width) * mesh.height);
-  for (int i = 0; i < mesh.width * mesh.height; ++i) interior[i] = mesh.triangles[i] ? distance.ptr<float>()[i] : 0.0f;
+  interior.resize(cells);
+  for (int i = 0; i < cells; ++i) interior[i] = mesh.triangles[i] ? distance.ptr<float>()[i] : 0.0f;
 }
 
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
@@ -105,76 +112,70 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
   const DepthMesh& mesh = *view.mesh;
   const int window = std::clamp(static_cast<int>(std::ceil(distance * view.intrinsics.fx / depth)), 1, max_window);
   // Triangle centres sit at 1/3 and 2/3 of a cell, so the cells whose index is within the window
-  // of floor(pixel) hold every centre within `window` pixels.
+  // of floor(pixel) hold every centre within `window` pixels. The same surface is usually found
+  // in the first rings, so rings are searched from the centre outwards.
   const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
-  const int u0 = std::max(cu - window, 0), u1 = std::min(cu + window, mesh.width - 2);
-  const int v0 = std::max(cv - window, 0), v1 = std::min(cv + window, mesh.height - 2);
+  const int last_u = mesh.width - 2, last_v = mesh.height - 2;
+  // Far from any triangle of the mesh (in its image): nothing to search.
+  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v &&
+      (*view.exterior)[cv * mesh.width + cu] > static_cast<float>(window) * 1.5f + 1.0f) {
+    return false;
+  }
   const float distance2 = distance * distance;
-  for (int v = v0; v <= v1; ++v) {
-    for (int u = u0; u <= u1; ++u) {
-      const int cell = v * mesh.width + u;
-      const std::uint8_t bits = mesh.triangles[cell];
-      if (!bits) continue;
-      if ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) return true;
-      if ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2) return true;
+  auto cell_has_near = [&](int u, int v) {
+    if (u < 0 || v < 0 || u > last_u || v > last_v) return false;
+    const int cell = v * mesh.width + u;
+    const std::uint8_t bits = mesh.triangles[cell];
+    if (!bits) return false;
+    return ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) ||
+           ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2);
+  };
+  if (cell_has_near(cu, cv)) return true;
+  for (int ring = 1; ring <= window; ++ring) {
+    if (cu + ring < 0 || cu - ring > last_u || cv + ring < 0 || cv - ring > last_v) return false;
+    for (int d = -ring; d <= ring; ++d) {
+      if (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring)) return true;
+    }
+    for (int d = -ring + 1; d <= ring - 1; ++d) {
+      if (cell_has_near(cu - ring, cv + d) || cell_has_near(cu + ring, cv + d)) return true;
     }
   }
   return false;
 }
 
-int nearest_triangle(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
-  Eigen::Vector2f pixel;
-  float depth = 0;
-  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return -1;
-  const DepthMesh& mesh = *view.mesh;
-  const int window = std::clamp(static_cast<int>(std::ceil(distance * view.intrinsics.fx / depth)), 1, max_window);
-  const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
-  const int u0 = std::max(cu - window, 0), u1 = std::min(cu + window, mesh.width - 2);
-  const int v0 = std::max(cv - window, 0), v1 = std::min(cv + window, mesh.height - 2);
-  float best = distance * distance;
-  int best_id = -1;
-  for (int v = v0; v <= v1; ++v) {
-    for (int u = u0; u <= u1; ++u) {
-      const int cell = v * mesh.width + u;
-      const std::uint8_t bits = mesh.triangles[cell];
-      if (!bits) continue;
-      for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-        if (!(bits & bit)) continue;
-        const float d2 = (triangle_centre(mesh, cell, bit) - p).squaredNorm();
-        if (d2 < best) {
-          best = d2;
-          best_id = triangle_id(cell, bit);
-        }
-      }
-    }
-  }
-  return best_id;
-}
-
 double overlap_share(const MeshView& a, const MeshView& b, float distance) {
+  // Every other cell is enough for a share; points that project outside b's coverage (interior
+  // distance 0 there) are counted without a search.
   const DepthMesh& mesh = *a.mesh;
   int total = 0, near = 0;
   const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
+  for (int cell = 0; cell < cells; cell += 2) {
     const std::uint8_t bits = mesh.triangles[cell];
     if (!bits) continue;
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if (!(bits & bit)) continue;
-      ++total;
-      near += has_triangle_near(b, triangle_centre(mesh, cell, bit), distance);
-    }
+    const TriangleBit bit = (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle;
+    ++total;
+    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
+    Eigen::Vector2f pixel;
+    float depth = 0;
+    if (!project_world_point(centre, b.depth_from_world, b.intrinsics, pixel, depth)) continue;
+    const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+    if (u < 0 || v < 0 || u >= b.mesh->width || v >= b.mesh->height) continue;
+    if (b.interior != nullptr && (*b.interior)[v * b.mesh->width + u] <= 0) continue;
+    near += has_triangle_near(b, centre, distance);
   }
   return total ? static_cast<double>(near) / total : 0.0;
 }
 
-FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, FrbrScratch& scratch_a,
-                                       FrbrScratch& scratch_b) {
+FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,
+                                       FrbrScratch& scratch_a, FrbrScratch& scratch_b) {
   FrbrResult result;
-  start_worklist(*a.mesh, scratch_a);
-  start_worklist(*b.mesh, scratch_b);
+  start_worklist(*a.mesh, whole_first_sweep, scratch_a);
+  start_worklist(*b.mesh, whole_first_sweep, scratch_b);
+  bool boundary_only = !whole_first_sweep;
   while (true) {
-    const int removed_a = sweep(a, b, redundancy_distance, scratch_a);
-    const int removed_b = sweep(b, a, redundancy_distance, scratch_b);
+    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, scratch_a);
+    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, scratch_b);
+    boundary_only = true;
     ++result.iterations;
     result.removed_a += removed_a;
     result.removed_b += removed_b;

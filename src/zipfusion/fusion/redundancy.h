@@ -5,8 +5,8 @@
 //! coarse-to-fine driver, and the detection of overlapping camera pairs.
 //!
 //! A boundary triangle t of mesh A is redundant with respect to mesh B when B holds the same
-//! surface (the triangle of B whose centre is nearest to t's lies within the redundancy distance
-//! d_r) and B sees it better. Neighbours are found by projecting the centre into camera B and
+//! surface (a triangle of B lies within the redundancy distance d_r of t's centre) and B sees it
+//! better. Neighbours are found by projecting the centre into camera B and
 //! searching a small window of B's cells (Fig. 5 of the paper). FRBR peels one boundary layer of
 //! A, then one of B, and repeats until neither changes.
 //!
@@ -36,26 +36,24 @@ struct MeshView {
   Intrinsics intrinsics;       // of this level (focal length and centre scaled by 2^-level)
   Rigid3f depth_from_world = Rigid3f::Identity();
   const std::vector<float>* interior = nullptr;  // per cell: distance to the mesh's border, cells
+  const std::vector<float>* exterior = nullptr;  // per cell: distance to the nearest cell with a triangle, cells
   int camera = 0;                                 // breaks ownership ties
 };
 
-//! Per cell of `mesh`: distance (in cells) to the nearest cell without triangles, after closing
-//! holes up to `close_cells` wide (noise dropouts do not make a border). 0 where no triangle.
-void compute_interior_distance(const DepthMesh& mesh, int close_cells, std::vector<float>& interior);
+//! Per cell of `mesh`: `interior`, the distance (in cells) to the nearest cell without triangles
+//! after closing holes up to `close_cells` wide (noise dropouts do not make a border), 0 where no
+//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh).
+void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior);
 
 //! Triangle id: cell index · 2 + (0 upper, 1 lower).
 inline int triangle_id(int cell, TriangleBit bit) { return cell * 2 + (bit == kLowerTriangle ? 1 : 0); }
 inline int cell_of(int id) { return id >> 1; }
 inline TriangleBit bit_of(int id) { return (id & 1) ? kLowerTriangle : kUpperTriangle; }
 
-//! Element function: does `view` hold a triangle whose centre is within `distance` of point p?
+//! Element function: does `view` hold a triangle within `distance` of point p?
 //! Searches the cells around p's projection, wide enough to cover `distance` at p's depth (at
 //! most max_window cells each way).
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 8);
-
-//! Element function: the triangle of `view` whose centre is nearest to p, if one lies within
-//! `distance` (searched as in has_triangle_near); returns its id or −1.
-int nearest_triangle(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 8);
 
 //! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
 //! than `a` (larger interior distance at p in b's image than at the cell in a's; ties to the
@@ -63,7 +61,8 @@ int nearest_triangle(const MeshView& view, const Eigen::Vector3f& p, float dista
 //! gap.
 bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p);
 
-//! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance`.
+//! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance` (estimated on
+//! every other cell).
 double overlap_share(const MeshView& a, const MeshView& b, float distance);
 
 //! Scratch space of one camera for FRBR, reused across frames.
@@ -80,9 +79,12 @@ struct FrbrResult {
 };
 
 //! Runs FRBR between two views until neither mesh changes; clears redundant triangles' bits.
+//! With `whole_first_sweep` the first sweep tests every triangle, not only the boundary ones (used
+//! on the coarsest level: it also removes doubled patches that noise or holes cut off from the
+//! mesh's boundary, which peeling never reaches).
 //! Not thread-safe for views that share a mesh; distinct pairs may run in parallel.
-FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, FrbrScratch& scratch_a,
-                                       FrbrScratch& scratch_b);
+FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,
+                                       FrbrScratch& scratch_a, FrbrScratch& scratch_b);
 
 //! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (depth and world
 //! points), triangulated by SDC with the depth-jump threshold scaled by 2^level.

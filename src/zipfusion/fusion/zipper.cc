@@ -77,14 +77,16 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.levels.resize(levels);
     s.bits_before.resize(levels);
     s.interior.resize(levels + 1);
+    s.exterior.resize(levels + 1);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
-    compute_interior_distance(*cameras[c].mesh, options.hole_closing_px, s.interior[0]);
-    views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.interior[0], c};
+    compute_coverage_distances(*cameras[c].mesh, options.hole_closing_px, s.interior[0], s.exterior[0]);
+    views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.interior[0],
+                   &s.exterior[0], c};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
-      compute_interior_distance(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level]);
+      compute_coverage_distances(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level], s.exterior[level]);
       views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world,
-                         &s.interior[level], c};
+                         &s.interior[level], &s.exterior[level], c};
     }
   }, options.num_threads);
   result.stats.pyramid_ms = ms_since(t);
@@ -127,7 +129,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (const auto& round : rounds) {
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const auto [a, b] = round[i];
-        remove_redundant_boundaries(views[a][level], views[b][level], distance, scratch.cameras[a].frbr, scratch.cameras[b].frbr);
+        remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, scratch.cameras[a].frbr,
+                                    scratch.cameras[b].frbr);
       }, options.num_threads);
     }
   }

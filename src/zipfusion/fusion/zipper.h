@@ -19,13 +19,13 @@
 namespace zipfusion {
 
 struct ZipperOptions {
-  double redundancy_distance_m = 0.02;  // d_r (III-C): triangles closer than this to another camera's are redundant
+  double redundancy_distance_m = 0.03;  // d_r (III-C): triangles closer than this to another camera's are redundant
   int coarse_levels = 2;                // L (III-C2): FRBR starts on depth maps downsampled by 2^L
   double coarse_shrink = 0.7;           // β (III-C2): d_r at level l is β^l·d_r
   double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
   int hole_closing_px = 3;              // holes up to 2·this+1 pixels wide do not count as borders for ownership
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
-  double min_overlap_share = 0.002;     // a pair overlaps when this share of one mesh lies within d_r of the other
+  double min_overlap_share = 0.0005;    // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
   int num_threads = 0;                  // 0 = all hardware threads
 
@@ -64,6 +64,7 @@ struct ZipperScratch {
   struct Camera {
     std::vector<DepthMesh> levels;                       // levels 1..L (index level−1)
     std::vector<std::vector<float>> interior;            // levels 0..L: distance to the border, cells
+    std::vector<std::vector<float>> exterior;            // levels 0..L: distance to the mesh, cells
     std::vector<std::vector<std::uint8_t>> bits_before;  // per level 1..L, bits before FRBR
     FrbrScratch frbr;
     SeamScratch seam;

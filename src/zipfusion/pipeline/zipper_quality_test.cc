@@ -1,0 +1,228 @@
+// End-to-end quality of the zipper mode against ground truth on synthetic rings of cameras: the
+// project's targets (one connected, manifold mesh without the doubled overlaps of the separate
+// meshes, as complete and as accurate as they are), measured with evaluate_frame.
+//
+// Each case renders two frames of the built-in subject in memory, reconstructs them in both
+// modes and averages the quality over the frames (counts: the worse frame). The measured numbers
+// are printed so the test log keeps them.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "zipfusion/core/mesh_distance.h"
+#include "zipfusion/eval/eval.h"
+#include "zipfusion/pipeline/reconstruct.h"
+#include "zipfusion/synth/synth.h"
+
+namespace zipfusion {
+namespace {
+
+constexpr int kFrames[] = {0, 15};
+
+// The volume write_synthetic_capture uses: samba-4cam's box, grown to hold the subject's first
+// frame with 0.3 m to spare, the floor kept outside.
+Box3d synthetic_volume(const SynthOptions& options) {
+  Box3d box{{-1.0, -1.0, 0.02}, {1.0, 1.0, 2.2}};
+  for (const Eigen::Vector3f& p : subject_mesh(options, 0).positions) {
+    const Eigen::Vector3d q = p.cast<double>();
+    box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));
+    box.max = box.max.cwiseMax(q + Eigen::Vector3d::Constant(0.3));
+  }
+  box.min.z() = std::max(box.min.z(), 0.02);
+  return box;
+}
+
+// Quality of one mode, averaged over the frames; counts are the worst frame's.
+struct ModeQuality {
+  double area_ratio = 0;
+  double completeness = 0;
+  double accuracy_mean_mm = 0;
+  double accuracy_p95_mm = 0;
+  int large_components = 0;
+  int non_manifold_edges = 0;
+  int min_cameras_used = 1 << 30;
+  int max_cameras_used = 0;
+  double triangles = 0;
+};
+
+struct CaseQuality {
+  ModeQuality zipper;
+  ModeQuality separate;
+  double separate_area_m2 = 0;   // mean over frames, inside the volume
+  double zipper_area_m2 = 0;
+  double redundant_area_m2 = 0;  // half the area of the separate meshes that another camera's mesh doubles (within 1 cm)
+};
+
+// Area of the triangles of each camera's own mesh that lie within 1 cm of another camera's mesh,
+// halved: what removing every doubled layer takes away.
+double redundant_area(const Rig& rig, const FrameSet& frames, bool bilateral) {
+  std::vector<TriangleMesh> meshes;
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    FrameSet single = frames;
+    for (size_t k = 0; k < single.cameras.size(); ++k) single.cameras[k].has_depth = single.cameras[k].has_depth && k == c;
+    FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kSeparate, .bilateral = bilateral});
+    meshes.push_back(reconstructor.reconstruct(single).mesh);
+  }
+  double doubled = 0;
+  for (size_t c = 0; c < meshes.size(); ++c) {
+    TriangleMesh others;
+    for (size_t k = 0; k < meshes.size(); ++k) {
+      if (k != c) others.append(meshes[k]);
+    }
+    if (others.triangles.empty()) continue;
+    const MeshDistance distance(others);
+    for (const Eigen::Vector3i& t : meshes[c].triangles) {
+      const Eigen::Vector3f& a = meshes[c].positions[t[0]];
+      const Eigen::Vector3f& b = meshes[c].positions[t[1]];
+      const Eigen::Vector3f& d = meshes[c].positions[t[2]];
+      if (distance.closest((a + b + d) / 3.0f, 0.01f).triangle >= 0) doubled += 0.5 * (b - a).cross(d - a).norm();
+    }
+  }
+  return doubled / 2;
+}
+
+struct CaseSpec {
+  std::string name;
+  SynthOptions synth;
+  bool bilateral = true;
+  int dead_camera = -1;  // this camera has no depth in any frame set
+};
+
+CaseQuality measure(const CaseSpec& spec) {
+  Rig rig = make_ring_rig(spec.synth);
+  rig.volume = synthetic_volume(spec.synth);
+  rig.frame_count = spec.synth.frames;
+
+  // The observed truth is what the working cameras can see: a dead camera's view is no gap.
+  Rig eval_rig = rig;
+  if (spec.dead_camera >= 0) eval_rig.cameras.erase(eval_rig.cameras.begin() + spec.dead_camera);
+
+  CaseQuality result;
+  const auto modes = {ReconstructMode::kSeparate, ReconstructMode::kZipper};
+  for (const int frame : kFrames) {
+    const TriangleMesh truth = subject_mesh(spec.synth, frame);
+    FrameSet frames{.index = frame, .cameras = {}};
+    for (int c = 0; c < static_cast<int>(rig.cameras.size()); ++c) {
+      SyntheticView view = render_view(truth, rig, c, frame, spec.synth);
+      frames.cameras.push_back({.has_depth = c != spec.dead_camera, .depth = std::move(view.depth), .has_color = true,
+                                .color = std::move(view.color)});
+    }
+    result.redundant_area_m2 += redundant_area(rig, frames, spec.bilateral) / std::size(kFrames);
+    for (const ReconstructMode mode : modes) {
+      FrameReconstructor reconstructor(rig, {.mode = mode, .bilateral = spec.bilateral});
+      const FrameResult frame_result = reconstructor.reconstruct(frames);
+      const FrameQuality q = evaluate_frame(frame_result.mesh, truth, eval_rig, rig.volume);
+      const bool zipper = mode == ReconstructMode::kZipper;
+      ModeQuality& m = zipper ? result.zipper : result.separate;
+      const double n = std::size(kFrames);
+      m.area_ratio += q.area_ratio / n;
+      (zipper ? result.zipper_area_m2 : result.separate_area_m2) += q.reconstruction_area_m2 / n;
+      m.completeness += q.completeness / n;
+      m.accuracy_mean_mm += q.accuracy_mean_mm / n;
+      m.accuracy_p95_mm += q.accuracy_p95_mm / n;
+      m.triangles += q.triangles / n;
+      m.large_components = std::max(m.large_components, q.large_components);
+      m.non_manifold_edges = std::max(m.non_manifold_edges, q.non_manifold_edges);
+      m.min_cameras_used = std::min(m.min_cameras_used, frame_result.cameras_used);
+      m.max_cameras_used = std::max(m.max_cameras_used, frame_result.cameras_used);
+
+      char line[320];
+      std::snprintf(line, sizeof line,
+                    "[%s] frame %2d %-8s area_ratio %.3f completeness %.4f accuracy %.2f mm (p95 %.2f) "
+                    "large_components %d (all %d) non_manifold %d triangles %d cameras_used %d",
+                    spec.name.c_str(), frame, zipper ? "zipper" : "separate", q.area_ratio, q.completeness,
+                    q.accuracy_mean_mm, q.accuracy_p95_mm, q.large_components, q.components, q.non_manifold_edges,
+                    q.triangles, frame_result.cameras_used);
+      std::cout << line;
+      if (zipper) {
+        std::cout << " pairs " << frame_result.zipper.pairs << " redundant_removed " << frame_result.zipper.redundant_removed
+                  << " seam_added " << frame_result.zipper.seam_added;
+      }
+      std::cout << '\n';
+    }
+  }
+  for (const bool zipper : {false, true}) {
+    const ModeQuality& m = zipper ? result.zipper : result.separate;
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "[%s] mean     %-8s area_ratio %.3f completeness %.4f accuracy %.2f mm (p95 %.2f) "
+                  "large_components(max) %d non_manifold(max) %d triangles %.0f\n",
+                  spec.name.c_str(), zipper ? "zipper" : "separate", m.area_ratio, m.completeness, m.accuracy_mean_mm,
+                  m.accuracy_p95_mm, m.large_components, m.non_manifold_edges, m.triangles);
+    std::cout << line << std::flush;
+  }
+  return result;
+}
+
+SynthOptions ring(int cameras) {
+  SynthOptions options;
+  options.frames = 30;  // the subject's clock only: frames are rendered in memory
+  options.cameras = cameras;
+  return options;
+}
+
+// Noise-free depth: the zipper removes the doubled overlaps (the separate meshes cover the
+// overlaps twice) and still covers what the cameras see, as one manifold mesh.
+TEST(ZipperQuality, NoiseFreeFourCameras) {
+  SynthOptions synth = ring(4);
+  synth.noise = KinectNoiseOptions::none();
+  synth.color_noise_sigma = 0;
+  const CaseQuality q = measure({.name = "4cam noise-free", .synth = synth, .bilateral = false});
+  EXPECT_LE(q.zipper.area_ratio, 1.10);
+  EXPECT_GE(q.separate.area_ratio, 1.25);
+  EXPECT_GE(q.zipper.completeness, 0.95);
+  EXPECT_LE(q.zipper.large_components, 3);
+  EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  EXPECT_LE(q.zipper.accuracy_mean_mm, q.separate.accuracy_mean_mm + 0.2);
+  EXPECT_EQ(q.zipper.min_cameras_used, 4);
+}
+
+// Kinect v1 noise with the bilateral filter on, for a sparse and a dense ring.
+void expect_noisy_ring_targets(int cameras) {
+  const CaseQuality q = measure({.name = std::to_string(cameras) + "cam kinect", .synth = ring(cameras), .bilateral = true});
+  // The doubled layers go: the zipper's area is at most the separate meshes' less 70 % of their
+  // redundant area. (A fixed share of the separate area, as the samba-4cam target is stated,
+  // does not fit every rig: three cameras 120° apart overlap little, so removing every doubled
+  // layer takes away only a few per cent.)
+  std::cout << "[" << cameras << "cam kinect] area m2: separate " << q.separate_area_m2 << " zipper " << q.zipper_area_m2
+            << " redundant in separate " << q.redundant_area_m2 << "\n";
+  EXPECT_LE(q.zipper_area_m2, q.separate_area_m2 - 0.7 * q.redundant_area_m2);
+  EXPECT_LE(q.zipper.large_components, 3);
+  EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  if (cameras >= 4) {
+    EXPECT_GE(q.zipper.completeness, 0.95);
+  } else {
+    // Three cameras 120° apart see the body's sides at grazing angles, where edge dropout,
+    // projector shadows and the SDC depth-jump test leave no depth: even the separate meshes,
+    // which keep all the data, cover only about 93 % of the observed truth. The zipper must not
+    // lose coverage beyond that.
+    EXPECT_GE(q.zipper.completeness, q.separate.completeness - 0.01);
+  }
+  EXPECT_LE(q.zipper.accuracy_mean_mm, q.separate.accuracy_mean_mm + 0.2);
+  EXPECT_EQ(q.zipper.min_cameras_used, cameras);
+}
+
+TEST(ZipperQuality, KinectNoiseThreeCameras) { expect_noisy_ring_targets(3); }
+
+TEST(ZipperQuality, KinectNoiseSixCameras) { expect_noisy_ring_targets(6); }
+
+// A dead camera leaves a gap in the coverage, not in the connectivity: the three cameras that
+// remain still give one large manifold mesh covering what they see (completeness here is of the
+// truth the working cameras observe).
+TEST(ZipperQuality, DeadCameraIsLeftOut) {
+  const CaseQuality q = measure({.name = "4cam cam2 dead", .synth = ring(4), .bilateral = true, .dead_camera = 2});
+  EXPECT_LE(q.zipper.large_components, 3);
+  EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  EXPECT_EQ(q.zipper.min_cameras_used, 3);
+  EXPECT_EQ(q.zipper.max_cameras_used, 3);
+  // Covering the rest: as much of the observed truth as the separate meshes of the three cameras.
+  EXPECT_GE(q.zipper.completeness, q.separate.completeness - 0.01);
+}
+
+}  // namespace
+}  // namespace zipfusion
