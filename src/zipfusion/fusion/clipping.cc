@@ -30,8 +30,11 @@ void next_stamp(SeamScratch& s, size_t size) {
   }
 }
 
-// Flood fill from a's boundary: the triangles of `a` within d_c of `b`, connected to the boundary.
-void find_seam_triangles(const MeshView& a, const MeshView& b, float distance, SeamScratch& s) {
+// Flood fill: the triangles of `a` within d_c of `b`, grown from a's boundary triangles and from
+// the triangles of `a` under b's boundary. The second seeds matter where `b` lost the overlap and
+// ends on top of a's surface: there `a` has no boundary, yet its triangles under b's border must
+// join the seam for the two to be stitched.
+void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_boundary, float distance, SeamScratch& s) {
   const DepthMesh& mesh = *a.mesh;
   next_stamp(s, mesh.triangles.size() * 2);
   s.queue.clear();
@@ -45,12 +48,22 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, float distance, S
     s.queue.push_back(id);
     s.taken.push_back(id);
   };
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    if (!mesh.triangles[cell]) continue;
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) visit(triangle_id(cell, bit));
-    }
+  for (int id : s.boundary) {
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) visit(id);
+  }
+  const DepthMesh& other = *b.mesh;
+  for (int id : b_boundary) {
+    const int cell = cell_of(id);
+    if (!is_boundary_triangle(other.triangles.data(), cell, other.width, other.height, bit_of(id))) continue;
+    Eigen::Vector2f pixel;
+    float depth = 0;
+    if (!project_world_point(triangle_centre(other, cell, bit_of(id)), a.depth_from_world, a.intrinsics, pixel, depth)) continue;
+    const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+    if (u < 0 || v < 0 || u >= mesh.width - 1 || v >= mesh.height - 1) continue;
+    const int under = v * mesh.width + u;
+    if (!mesh.triangles[under]) continue;
+    visit(triangle_id(under, kUpperTriangle));
+    visit(triangle_id(under, kLowerTriangle));
   }
   while (!s.queue.empty()) {
     const int id = s.queue.back();
@@ -104,6 +117,19 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
     }
   }
   seam.triangles_taken += static_cast<int>(s.taken.size());
+  // The triangles next to the taken ones are boundary now: candidates for later pairs' seams.
+  for (int id : s.taken) {
+    const int cell = cell_of(id), u = cell % mesh.width, v = cell / mesh.width;
+    if (bit_of(id) == kUpperTriangle) {
+      s.boundary.push_back(triangle_id(cell, kLowerTriangle));
+      if (v > 0) s.boundary.push_back(triangle_id(cell - mesh.width, kLowerTriangle));
+      if (u > 0) s.boundary.push_back(triangle_id(cell - 1, kLowerTriangle));
+    } else {
+      s.boundary.push_back(triangle_id(cell, kUpperTriangle));
+      if (v + 2 < mesh.height) s.boundary.push_back(triangle_id(cell + mesh.width, kUpperTriangle));
+      if (u + 2 < mesh.width) s.boundary.push_back(triangle_id(cell + 1, kUpperTriangle));
+    }
+  }
 }
 
 // The edges of kept triangles between two seam vertices of the same mesh: the seam must contain
@@ -144,6 +170,17 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
 
 }  // namespace
 
+void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
+  boundary.clear();
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    if (!mesh.triangles[cell]) continue;
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) boundary.push_back(triangle_id(cell, bit));
+    }
+  }
+}
+
 bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance) {
   Eigen::Vector2f pixel;
   float depth = 0;
@@ -164,8 +201,8 @@ Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& cen
                      const Eigen::Vector3f& centre_b, const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b) {
   Seam seam;
   // Both seams are found against the meshes as FRBR left them, then taken out together.
-  find_seam_triangles(a, b, options.clipping_distance, scratch_a);
-  find_seam_triangles(b, a, options.clipping_distance, scratch_b);
+  find_seam_triangles(a, b, scratch_b.boundary, options.clipping_distance, scratch_a);
+  find_seam_triangles(b, a, scratch_a.boundary, options.clipping_distance, scratch_b);
   // Both meshes lose their seam triangles before either's points are chosen, so "kept" means
   // kept after clipping.
   for (int id : scratch_a.taken) a.mesh->triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));

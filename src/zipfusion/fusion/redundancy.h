@@ -53,7 +53,7 @@ inline TriangleBit bit_of(int id) { return (id & 1) ? kLowerTriangle : kUpperTri
 //! Element function: does `view` hold a triangle within `distance` of point p?
 //! Searches the cells around p's projection, wide enough to cover `distance` at p's depth (at
 //! most max_window cells each way).
-bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 8);
+bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 4);
 
 //! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
 //! than `a` (larger interior distance at p in b's image than at the cell in a's; ties to the

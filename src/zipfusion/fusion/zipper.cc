@@ -141,6 +141,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
 
   // Clipping: seams per pair.
   t = Clock::now();
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
+    collect_boundary_triangles(*cameras[c].mesh, scratch.cameras[c].seam.boundary);
+  }, options.num_threads);
   std::vector<Seam> seams(result.pairs.size());
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
