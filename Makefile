@@ -17,18 +17,23 @@ build: configure
 # The main job on a built-in synthetic capture: 4 Kinect-like cameras around a walking, waving person.
 demo: build
 	rm -rf $(DEMO_DIR)
-	$(BUILD_DIR)/zipfusion synth --out $(DEMO_DIR)/capture --frames 30 --cameras 4 --miscalibrate 0.5,0.01
+	$(BUILD_DIR)/zipfusion synth --out $(DEMO_DIR)/capture --frames 30 --cameras 4
 	$(BUILD_DIR)/zipfusion info $(DEMO_DIR)/capture
+	$(BUILD_DIR)/zipfusion reconstruct $(DEMO_DIR)/capture --out $(DEMO_DIR)/meshes
+	$(BUILD_DIR)/zipfusion eval $(DEMO_DIR)/capture $(DEMO_DIR)/meshes
 	@echo
 	@echo "demo results:"
 	@echo "  capture (rig.json, cam*/depth, cam*/color): $(abspath $(DEMO_DIR)/capture)"
 	@echo "  ground truth (true poses, true meshes):     $(abspath $(DEMO_DIR)/capture/ground_truth)"
+	@echo "  one zippered, coloured mesh per frame:      $(abspath $(DEMO_DIR)/meshes)/000000.ply ..."
+	@echo "  timings per stage:                          $(abspath $(DEMO_DIR)/meshes)/stats.json"
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
 
 bench: build
 	$(BUILD_DIR)/zf_micro_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+	$(BUILD_DIR)/zf_zipper_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
 clean:
 	rm -rf $(BUILD_DIR) out

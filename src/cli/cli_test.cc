@@ -10,6 +10,7 @@
 
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/io/mesh_io.h"
 
 namespace zipfusion {
 namespace {
@@ -95,8 +96,39 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
   EXPECT_FALSE(fs::exists(dir_ / "x"));
 }
 
+TEST_F(Cli, ReconstructWritesMeshesAndStats) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 3 --cameras 4").exit_code, 0);
+  const std::string zipper = (dir_ / "zip").string(), separate = (dir_ / "sep").string();
+  const CommandResult z = run("reconstruct " + capture + " --out " + zipper + " --frames 1:3");
+  ASSERT_EQ(z.exit_code, 0) << z.err;
+  ASSERT_EQ(run("reconstruct " + capture + " --out " + separate + " --mode separate --format obj --frames 1:3").exit_code, 0);
+  EXPECT_FALSE(fs::exists(fs::path(zipper) / "000000.ply"));
+  for (int frame : {1, 2}) {
+    const TriangleMesh zipped = read_mesh(fs::path(zipper) / frame_file_name(frame, ".ply"));
+    const TriangleMesh side_by_side = read_mesh(fs::path(separate) / frame_file_name(frame, ".obj"));
+    EXPECT_EQ(zipped.colors.size(), zipped.positions.size());
+    // The zipper removes the doubled overlaps of the separate meshes.
+    EXPECT_LT(zipped.triangle_count(), side_by_side.triangle_count() * 0.9);
+    EXPECT_GT(zipped.triangle_count(), side_by_side.triangle_count() * 0.4);
+  }
+  std::ifstream in(fs::path(zipper) / "stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(in);
+  ASSERT_EQ(stats["frames"].size(), 2u);
+  for (const auto& f : stats["frames"]) {
+    EXPECT_EQ(f["cameras_used"], 4);
+    EXPECT_GT(f["ms"]["total"].get<double>(), 0.0);
+    EXPECT_GE(f["zipper"]["pairs"].get<int>(), 4);
+    const TriangleMesh mesh = read_mesh(fs::path(zipper) / frame_file_name(f["frame"].get<int>(), ".ply"));
+    EXPECT_EQ(f["triangles"].get<size_t>(), mesh.triangle_count());
+  }
+  const CommandResult bad = run("reconstruct " + capture + " --out " + zipper + " --frames 2:9");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--frames: \"2:9\" selects no frames of a capture with 3 frames"), std::string::npos) << bad.err;
+}
+
 TEST_F(Cli, EverySubcommandHasHelp) {
-  for (const std::string sub : {"synth", "info"}) {
+  for (const std::string sub : {"synth", "info", "reconstruct", "eval"}) {
     const CommandResult r = run(sub + " --help");
     EXPECT_EQ(r.exit_code, 0);
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
