@@ -2,6 +2,8 @@
 // truth, the table, the JSON and the errors.
 
 #include <gtest/gtest.h>
+
+#include "cli/cli_test_util.h"
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -18,30 +20,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string out, err;
-};
+using testing::CommandResult;
+using testing::line_count;
 
-class EvalCli : public ::testing::Test {
- protected:
-  fs::path dir_ = fs::temp_directory_path() / ("zf_eval_cli_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-  void SetUp() override { fs::remove_all(dir_); fs::create_directories(dir_); }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  CommandResult run(const std::string& args) {
-    const std::string command = std::string(ZF_BINARY) + " " + args + " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() + " < /dev/null";
-    const int status = std::system(command.c_str());
-    CommandResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    auto slurp = [](const fs::path& p) { std::ifstream in(p); std::stringstream s; s << in.rdbuf(); return s.str(); };
-    r.out = slurp(dir_ / "stdout");
-    r.err = slurp(dir_ / "stderr");
-    return r;
-  }
-};
-
-int line_count(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+class EvalCli : public testing::CliTest {};
 
 TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   const fs::path capture = dir_ / "cap";

@@ -68,16 +68,9 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
   while (!s.queue.empty()) {
     const int id = s.queue.back();
     s.queue.pop_back();
-    const int cell = cell_of(id), u = cell % mesh.width, v = cell / mesh.width;
-    if (bit_of(id) == kUpperTriangle) {
-      visit(triangle_id(cell, kLowerTriangle));
-      if (v > 0) visit(triangle_id(cell - mesh.width, kLowerTriangle));
-      if (u > 0) visit(triangle_id(cell - 1, kLowerTriangle));
-    } else {
-      visit(triangle_id(cell, kUpperTriangle));
-      if (v + 2 < mesh.height) visit(triangle_id(cell + mesh.width, kUpperTriangle));
-      if (u + 2 < mesh.width) visit(triangle_id(cell + 1, kUpperTriangle));
-    }
+    int neighbours[3];
+    const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
+    for (int k = 0; k < n; ++k) visit(neighbours[k]);
   }
 }
 
@@ -119,16 +112,9 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
   seam.triangles_taken += static_cast<int>(s.taken.size());
   // The triangles next to the taken ones are boundary now: candidates for later pairs' seams.
   for (int id : s.taken) {
-    const int cell = cell_of(id), u = cell % mesh.width, v = cell / mesh.width;
-    if (bit_of(id) == kUpperTriangle) {
-      s.boundary.push_back(triangle_id(cell, kLowerTriangle));
-      if (v > 0) s.boundary.push_back(triangle_id(cell - mesh.width, kLowerTriangle));
-      if (u > 0) s.boundary.push_back(triangle_id(cell - 1, kLowerTriangle));
-    } else {
-      s.boundary.push_back(triangle_id(cell, kUpperTriangle));
-      if (v + 2 < mesh.height) s.boundary.push_back(triangle_id(cell + mesh.width, kUpperTriangle));
-      if (u + 2 < mesh.width) s.boundary.push_back(triangle_id(cell + 1, kUpperTriangle));
-    }
+    int neighbours[3];
+    const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
+    s.boundary.insert(s.boundary.end(), neighbours, neighbours + n);
   }
 }
 

@@ -15,22 +15,6 @@ void enqueue(FrbrScratch& s, int id) {
   s.next.push_back(id);
 }
 
-// The (up to three) edge neighbours of a triangle, whether they exist or not; returns how many.
-int neighbour_ids(int id, int width, int height, int out[3]) {
-  const int cell = cell_of(id);
-  const int u = cell % width, v = cell / width;
-  int n = 0;
-  if (bit_of(id) == kUpperTriangle) {
-    out[n++] = triangle_id(cell, kLowerTriangle);
-    if (v > 0) out[n++] = triangle_id(cell - width, kLowerTriangle);
-    if (u > 0) out[n++] = triangle_id(cell - 1, kLowerTriangle);
-  } else {
-    out[n++] = triangle_id(cell, kUpperTriangle);
-    if (v + 2 < height) out[n++] = triangle_id(cell + width, kUpperTriangle);
-    if (u + 2 < width) out[n++] = triangle_id(cell + 1, kUpperTriangle);
-  }
-  return n;
-}
 
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
@@ -50,7 +34,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
   for (int id : s.removals) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
   for (int id : s.removals) {
     int neighbours[3];
-    const int n = neighbour_ids(id, mesh.width, mesh.height, neighbours);
+    const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
     for (int k = 0; k < n; ++k) {
       if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) enqueue(s, neighbours[k]);
     }
