@@ -117,6 +117,7 @@ void run_reconstruct(ReconstructArgs& args) {
                       {"clipping_distance_m", options.zipper.clipping_distance_m},
                       {"max_seam_edge_m", options.zipper.max_seam_edge_m},
                       {"min_overlap_share", options.zipper.min_overlap_share},
+                      {"hole_closing_px", options.zipper.hole_closing_px},
                       {"threads", options.num_threads}};
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
@@ -157,6 +158,8 @@ void add_reconstruct_command(CLI::App& app) {
   cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
       ->capture_default_str();
   cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
+  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Holes up to 2*this+1 pixels wide are not borders when judging which camera sees better")
+      ->capture_default_str();
   cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
       ->capture_default_str();
   cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();

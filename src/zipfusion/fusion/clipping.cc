@@ -86,14 +86,13 @@ bool pixel_has_triangle(const DepthMesh& mesh, int p) {
   return (bits(0, 0) & kUpperTriangle) || bits(-1, 0) || bits(0, -1) || (bits(-1, -1) & kLowerTriangle);
 }
 
-// Clears the taken triangles from the mesh and adds their pixels to the seam's vertex list, each
-// once. A pixel that no kept triangle uses any more is left out when the other mesh owns the
+// Adds the pixels of the taken triangles (already cleared from the mesh) to the seam's vertex
+// list, each once. A pixel that no kept triangle uses any more is left out when the other mesh owns the
 // surface there (as in FRBR): inside the seam, where the two meshes' boundaries overlap by a
 // triangle or two, only one layer of points is triangulated, so the seam does not zigzag between
 // two noisy layers.
 void take_triangles(const MeshView& view, const MeshView& other, float distance, SeamScratch& s, Seam& seam) {
-  DepthMesh& mesh = *view.mesh;
-  for (int id : s.taken) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
+  const DepthMesh& mesh = *view.mesh;
   next_stamp(s, mesh.triangles.size() * 2);
   if (s.seam_index.size() < mesh.triangles.size()) s.seam_index.resize(mesh.triangles.size());
   for (int id : s.taken) {
@@ -183,8 +182,8 @@ bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float t
   return std::abs(mean_depth - depth) < tolerance;
 }
 
-Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& centre_a, const MeshView& b, int camera_b,
-                     const Eigen::Vector3f& centre_b, const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b) {
+Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
+                     const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b) {
   Seam seam;
   // Both seams are found against the meshes as FRBR left them, then taken out together.
   find_seam_triangles(a, b, scratch_b.boundary, options.clipping_distance, scratch_a);
@@ -199,12 +198,10 @@ Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& cen
   std::vector<std::pair<int, int>> constraints;
   add_kept_edges(a, scratch_a, 0, a_end, seam, constraints);
   add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, constraints);
-  (void)camera_a;
-  (void)camera_b;
   if (seam.vertices.size() < 3) return seam;
 
   auto position = [&](const PixelVertex& v) -> const Eigen::Vector3f& {
-    return (v.camera == camera_a ? a.mesh : b.mesh)->points[v.pixel];
+    return (v.camera == a.camera ? a.mesh : b.mesh)->points[v.pixel];
   };
 
   // The virtual camera halfway between the two.

@@ -58,8 +58,9 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
 bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance);
 
 //! Takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out of both meshes
-//! and returns the triangles that stitch them. Camera indices label the seam's vertices.
-Seam clip_and_stitch(const MeshView& a, int camera_a, const Eigen::Vector3f& centre_a, const MeshView& b, int camera_b,
-                     const Eigen::Vector3f& centre_b, const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b);
+//! and returns the triangles that stitch them; the views' camera indices label the seam's
+//! vertices. `centre_a`, `centre_b`: the cameras' centres in the world.
+Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
+                     const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b);
 
 }  // namespace zipfusion

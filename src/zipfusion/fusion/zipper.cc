@@ -153,7 +153,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
       const auto [a, b] = round[i];
       const size_t pair_index = std::find(result.pairs.begin(), result.pairs.end(), round[i]) - result.pairs.begin();
-      seams[pair_index] = clip_and_stitch(views[a][0], a, cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0], b,
+      seams[pair_index] = clip_and_stitch(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                                           cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
                                           scratch.cameras[a].seam, scratch.cameras[b].seam);
     }, options.num_threads);
