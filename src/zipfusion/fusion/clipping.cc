@@ -102,7 +102,7 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
       if (s.stamp[p] == s.current) continue;
       s.stamp[p] = s.current;
       if (!pixel_has_triangle(mesh, p) && view.interior != nullptr) {
-        if (owner_is_other(view, p, other, mesh.points[p]) && has_triangle_near(other, mesh.points[p], distance)) continue;
+        if (owner_is_other(view, p, other, mesh.points[p], 2 * distance) && has_triangle_near(other, mesh.points[p], distance)) continue;
       }
       s.seam_index[p] = static_cast<int>(seam.vertices.size());
       seam.vertices.push_back({view.camera, p});

@@ -27,7 +27,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     if (!(mesh.triangles[cell] & bit)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
     const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
-    if (owner_is_other(a, cell, b, centre) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
+    if (owner_is_other(a, cell, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
   ++s.current_stamp;
   s.next.clear();
@@ -63,13 +63,23 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 
 // Does `b` see the surface at point p (in a's cell `cell`) better than `a`? Both distances are
 // taken at p itself, so the two meshes agree on every point and meet without a gap.
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p) {
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
   Eigen::Vector2f pixel;
   float depth = 0;
   if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
   const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-  if (u < 0 || v < 0 || u >= b.mesh->width || v >= b.mesh->height) return false;
-  const float mine = (*a.interior)[cell], theirs = (*b.interior)[v * b.mesh->width + u];
+  if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
+  // b must see p: one of the four pixels around its projection has about its depth (or none, when
+  // we cannot tell). Otherwise b sees another surface there, in front or behind, and owns nothing
+  // at p, and the costly search for b's triangles near p is skipped.
+  const int base = v * b.mesh->width + u;
+  bool seen = false;
+  for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
+    const float z = b.mesh->depth[index];
+    seen = seen || z <= 0 || std::abs(z - depth) < depth_tolerance;  // no depth: cannot tell, search
+  }
+  if (!seen) return false;
+  const float mine = (*a.interior)[cell], theirs = (*b.interior)[base];
   return theirs > mine || (theirs == mine && b.camera < a.camera);
 }
 
@@ -198,9 +208,23 @@ int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const Dep
     cleared += ((cell & bits & kUpperTriangle) ? 1 : 0) + ((cell & bits & kLowerTriangle) ? 1 : 0);
     cell &= static_cast<std::uint8_t>(~bits);
   };
+  // A removed coarse triangle next to a kept one is not propagated: along the line where the two
+  // meshes meet, a coarse cell straddles both owners, and clearing all its fine triangles would
+  // cut a hole wider than the seam can close. The finer level decides there.
+  auto next_to_kept = [&](int cell, TriangleBit bit) {
+    int neighbours[3];
+    const int n = triangle_neighbours(triangle_id(cell, bit), coarse.width, coarse.height, neighbours);
+    for (int k = 0; k < n; ++k) {
+      if (coarse.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) return true;
+    }
+    return false;
+  };
   const int cells = coarse.width * coarse.height;
   for (int i = 0; i < cells; ++i) {
-    const std::uint8_t removed = coarse_before[i] & static_cast<std::uint8_t>(~coarse.triangles[i]);
+    std::uint8_t removed = coarse_before[i] & static_cast<std::uint8_t>(~coarse.triangles[i]);
+    if (!removed) continue;
+    if ((removed & kUpperTriangle) && next_to_kept(i, kUpperTriangle)) removed &= static_cast<std::uint8_t>(~kUpperTriangle);
+    if ((removed & kLowerTriangle) && next_to_kept(i, kLowerTriangle)) removed &= static_cast<std::uint8_t>(~kLowerTriangle);
     if (!removed) continue;
     const int fu = 2 * (i % coarse.width), fv = 2 * (i / coarse.width);
     if (removed & kUpperTriangle) {

@@ -74,10 +74,11 @@ inline int triangle_neighbours(int id, int width, int height, int out[3]) {
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 4);
 
 //! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
-//! than `a` (larger interior distance at p in b's image than at the cell in a's; ties to the
-//! lower camera index)? Both meshes evaluate the same point the same way, so they meet without a
+//! than `a`? `b` must see p (a pixel next to p's projection has p's depth within
+//! `depth_tolerance`, or no depth), and its interior distance there must exceed a's at the cell (ties to the
+//! lower camera index). Both meshes evaluate the same point the same way, so they meet without a
 //! gap.
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p);
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance);
 
 //! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance` (estimated on
 //! every other cell).
@@ -109,7 +110,8 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse);
 
 //! Clears in `fine` (one level finer than `coarse`) the triangles covered by the triangles that
-//! were present in `coarse_before` but are gone from `coarse` (removed at the coarse level).
+//! were present in `coarse_before` (its SDC bits before any removal) but are gone from `coarse`
+//! (removed at the coarse level, directly or propagated from coarser ones).
 //! Returns the number of fine triangles cleared.
 int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const DepthMesh& coarse, DepthMesh& fine);
 

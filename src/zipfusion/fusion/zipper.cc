@@ -84,6 +84,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                    &s.exterior[0], c};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
+      s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
       compute_coverage_distances(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level], s.exterior[level]);
       views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world,
                          &s.interior[level], &s.exterior[level], c};
@@ -121,9 +122,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         const int c = active[i];
         propagate_removals(scratch.cameras[c].bits_before[level], *views[c][level + 1].mesh, *views[c][level].mesh);
       }, options.num_threads);
-    }
-    if (level > 0) {
-      for (int c : active) scratch.cameras[c].bits_before[level - 1] = views[c][level].mesh->triangles;
     }
     const float distance = d_r * static_cast<float>(std::pow(options.coarse_shrink, level));
     for (const auto& round : rounds) {
