@@ -44,7 +44,8 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     s.stamp[id] = s.current;
     const int cell = cell_of(id);
     if (!(mesh.triangles[cell] & bit_of(id))) return;
-    if (!has_triangle_near(b, triangle_centre(mesh, cell, bit_of(id)), distance)) return;
+    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit_of(id));
+    if (!may_see_point(b, centre, 2 * distance) || !has_triangle_near(b, centre, distance)) return;
     s.queue.push_back(id);
     s.taken.push_back(id);
   };

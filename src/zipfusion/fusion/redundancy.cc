@@ -63,23 +63,27 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 
 // Does `b` see the surface at point p (in a's cell `cell`) better than `a`? Both distances are
 // taken at p itself, so the two meshes agree on every point and meet without a gap.
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
+bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell) {
   Eigen::Vector2f pixel;
   float depth = 0;
   if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
   const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
   if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
-  // b must see p: one of the four pixels around its projection has about its depth (or none, when
-  // we cannot tell). Otherwise b sees another surface there, in front or behind, and owns nothing
-  // at p, and the costly search for b's triangles near p is skipped.
   const int base = v * b.mesh->width + u;
-  bool seen = false;
+  if (cell != nullptr) *cell = base;
   for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
     const float z = b.mesh->depth[index];
-    seen = seen || z <= 0 || std::abs(z - depth) < depth_tolerance;  // no depth: cannot tell, search
+    if (z <= 0 || std::abs(z - depth) < depth_tolerance) return true;  // no depth: cannot tell
   }
-  if (!seen) return false;
-  const float mine = (*a.interior)[cell], theirs = (*b.interior)[base];
+  return false;
+}
+
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
+  // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
+  // for b's triangles near p is skipped.
+  int b_cell = 0;
+  if (!may_see_point(b, p, depth_tolerance, &b_cell)) return false;
+  const float mine = (*a.interior)[cell], theirs = (*b.interior)[b_cell];
   return theirs > mine || (theirs == mine && b.camera < a.camera);
 }
 

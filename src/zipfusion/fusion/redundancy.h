@@ -73,6 +73,11 @@ inline int triangle_neighbours(int id, int width, int height, int out[3]) {
 //! most max_window cells each way).
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 4);
 
+//! Element function: false when camera `b` certainly does not see point p: it is outside b's
+//! image, or every pixel next to its projection has a depth (of another surface) more than
+//! `depth_tolerance` from p's. Optionally returns the cell p projects to.
+bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell = nullptr);
+
 //! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
 //! than `a`? `b` must see p (a pixel next to p's projection has p's depth within
 //! `depth_tolerance`, or no depth), and its interior distance there must exceed a's at the cell (ties to the
