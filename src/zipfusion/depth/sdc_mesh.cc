@@ -43,16 +43,7 @@ void append_depth_mesh(const DepthMesh& mesh, const std::vector<Rgb8>& colors, T
     }
     return index;
   };
-  for (int i = 0; i < count; ++i) {
-    const std::uint8_t bits = mesh.triangles[i];
-    if (!bits) continue;
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if (!(bits & bit)) continue;
-      int v[3];
-      triangle_pixels(i, mesh.width, bit, v);
-      out.triangles.emplace_back(vertex(v[0]), vertex(v[1]), vertex(v[2]));
-    }
-  }
+  for_each_triangle(mesh, [&](const int* v) { out.triangles.emplace_back(vertex(v[0]), vertex(v[1]), vertex(v[2])); });
 }
 
 }  // namespace zipfusion

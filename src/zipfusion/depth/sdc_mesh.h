@@ -101,6 +101,23 @@ inline bool project_world_point(const Eigen::Vector3f& p_world, const Rigid3f& d
   return true;
 }
 
+//! Calls f(pixels) with the three pixel indices (as triangle_pixels gives them) of every existing
+//! triangle of `mesh`, in cell order.
+template <typename F>
+void for_each_triangle(const DepthMesh& mesh, F&& f) {
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    const std::uint8_t bits = mesh.triangles[cell];
+    if (!bits) continue;
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      if (!(bits & bit)) continue;
+      int pixels[3];
+      triangle_pixels(cell, mesh.width, bit, pixels);
+      f(pixels);
+    }
+  }
+}
+
 //! Triangulates `depth_m` (metres, 0 = none) of a camera into `out`, reusing its buffers.
 void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
                      DepthMesh& out);

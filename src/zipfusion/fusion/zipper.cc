@@ -195,19 +195,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     }
   };
   for (int c : active) {
-    const DepthMesh& m = *cameras[c].mesh;
-    const int cells = m.width * m.height;
-    for (int cell = 0; cell < cells; ++cell) {
-      const std::uint8_t bits = m.triangles[cell];
-      if (!bits) continue;
-      for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-        if (!(bits & bit)) continue;
-        int p[3];
-        triangle_pixels(cell, m.width, bit, p);
-        mesh.triangles.emplace_back(vertex(c, p[0]), vertex(c, p[1]), vertex(c, p[2]));
-        note_edges(mesh.triangles.back());
-      }
-    }
+    for_each_triangle(*cameras[c].mesh, [&](const int* p) {
+      mesh.triangles.emplace_back(vertex(c, p[0]), vertex(c, p[1]), vertex(c, p[2]));
+      note_edges(mesh.triangles.back());
+    });
   }
   for (size_t i = 0; i < seams.size(); ++i) {
     for (const Eigen::Vector3i& local : seams[i].triangles) {
