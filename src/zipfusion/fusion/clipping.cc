@@ -156,17 +156,6 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
 
 }  // namespace
 
-void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
-  boundary.clear();
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    if (!mesh.triangles[cell]) continue;
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if (is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) boundary.push_back(triangle_id(cell, bit));
-    }
-  }
-}
-
 bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance) {
   Eigen::Vector2f pixel;
   float depth = 0;

@@ -46,12 +46,11 @@ struct SeamScratch {
   std::vector<int> queue;
   std::vector<int> taken;
   std::vector<int> seam_index;  // per pixel: index in Seam::vertices (valid where stamped)
-  std::vector<int> boundary;    // candidate boundary triangles: set by collect_boundary_triangles, grown by clipping
+  // Candidate boundary triangles, the seeds of the seams: set once per frame before clipping by
+  // collect_boundary_triangles (instead of scanning the whole bit matrix for every pair) and
+  // grown by each clipping.
+  std::vector<int> boundary;
 };
-
-//! The boundary triangles of `mesh` (ids), the seeds of its seams: collected once per frame before
-//! clipping instead of scanning the whole bit matrix for every pair.
-void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary);
 
 //! Element function: is point p covered by an existing triangle of `view` (the triangle under its
 //! projection, with a mean depth within `tolerance` of p's)?

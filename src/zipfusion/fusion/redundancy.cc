@@ -36,7 +36,10 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     int neighbours[3];
     const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
     for (int k = 0; k < n; ++k) {
-      if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) enqueue(s, neighbours[k]);
+      if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) {
+        enqueue(s, neighbours[k]);
+        s.frontier.push_back(neighbours[k]);  // boundary now, also for the camera's later pairs
+      }
     }
   }
   s.worklist.swap(s.next);
@@ -48,14 +51,14 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
   if (s.stamp.size() < ids) s.stamp.assign(ids, 0);
   ++s.current_stamp;
   s.worklist.clear();
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    if (!mesh.triangles[cell]) continue;
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-      if ((mesh.triangles[cell] & bit) && (all_triangles || is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit))) {
-        s.worklist.push_back(triangle_id(cell, bit));
-      }
-    }
+  if (all_triangles) {
+    for_each_triangle_id(mesh, [&](int id) { s.worklist.push_back(id); });
+    return;
+  }
+  for (int id : s.frontier) {
+    if (s.stamp[id] == s.current_stamp) continue;
+    s.stamp[id] = s.current_stamp;
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) s.worklist.push_back(id);
   }
 }
 
@@ -63,6 +66,13 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 
 // Does `b` see the surface at point p (in a's cell `cell`) better than `a`? Both distances are
 // taken at p itself, so the two meshes agree on every point and meet without a gap.
+void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
+  boundary.clear();
+  for_each_triangle_id(mesh, [&](int id) {
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) boundary.push_back(id);
+  });
+}
+
 bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell) {
   Eigen::Vector2f pixel;
   float depth = 0;

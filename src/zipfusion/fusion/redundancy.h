@@ -73,6 +73,20 @@ inline int triangle_neighbours(int id, int width, int height, int out[3]) {
 //! most max_window cells each way).
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 4);
 
+//! Calls f(id) for every existing triangle of `mesh`, in id order.
+template <typename F>
+void for_each_triangle_id(const DepthMesh& mesh, F&& f) {
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    const std::uint8_t bits = mesh.triangles[cell];
+    if (bits & kUpperTriangle) f(triangle_id(cell, kUpperTriangle));
+    if (bits & kLowerTriangle) f(triangle_id(cell, kLowerTriangle));
+  }
+}
+
+//! The boundary triangles of `mesh` (ids), in id order.
+void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary);
+
 //! Element function: false when camera `b` certainly does not see point p: it is outside b's
 //! image, or every pixel next to its projection has a depth (of another surface) more than
 //! `depth_tolerance` from p's. Optionally returns the cell p projects to.
@@ -92,6 +106,10 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance);
 //! Scratch space of one camera for FRBR, reused across frames.
 struct FrbrScratch {
   std::vector<int> worklist, next, removals;
+  // Candidate boundary triangles of this camera at the current level: its boundary when the level
+  // began (collect_boundary_triangles) plus every triangle next to a removal since. Pairs start
+  // from it instead of scanning the whole bit matrix.
+  std::vector<int> frontier;
   std::vector<std::uint32_t> stamp;
   std::uint32_t current_stamp = 0;
 };
@@ -103,7 +121,8 @@ struct FrbrResult {
 };
 
 //! Runs FRBR between two views until neither mesh changes; clears redundant triangles' bits.
-//! With `whole_first_sweep` the first sweep tests every triangle, not only the boundary ones (used
+//! Without `whole_first_sweep` the sweeps start from the scratch spaces' `frontier`, which must
+//! hold (at least) the meshes' boundary triangles. With it the first sweep tests every triangle, not only the boundary ones (used
 //! on the coarsest level: it also removes doubled patches that noise or holes cut off from the
 //! mesh's boundary, which peeling never reaches).
 //! Not thread-safe for views that share a mesh; distinct pairs may run in parallel.

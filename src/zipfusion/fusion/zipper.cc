@@ -123,6 +123,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         propagate_removals(scratch.cameras[c].bits_before[level], *views[c][level + 1].mesh, *views[c][level].mesh);
       }, options.num_threads);
     }
+    if (level < levels) {
+      parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+        const int c = active[i];
+        collect_boundary_triangles(*views[c][level].mesh, scratch.cameras[c].frbr.frontier);
+      }, options.num_threads);
+    }
     const float distance = d_r * static_cast<float>(std::pow(options.coarse_shrink, level));
     for (const auto& round : rounds) {
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
