@@ -41,7 +41,7 @@ struct MeshView {
 };
 
 //! Per cell of `mesh`: `interior`, the distance (in cells) to the nearest cell without triangles
-//! after closing holes up to `close_cells` wide (noise dropouts do not make a border), 0 where no
+//! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border), 0 where no
 //! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh).
 void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior);
 
