@@ -25,7 +25,7 @@ struct ZipperOptions {
   double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
   int hole_closing_px = 3;              // holes up to 2·this+1 pixels wide do not count as borders for ownership
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
-  double min_overlap_share = 0.0005;    // a pair overlaps when this share of one mesh lies within d_r of the other
+  double min_overlap_share = 0.002;     // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
   int num_threads = 0;                  // 0 = all hardware threads
 
