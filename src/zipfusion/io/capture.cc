@@ -49,6 +49,23 @@ void check_same_cameras(const Rig& rig, const Rig& truth, const std::string& tru
   }
 }
 
+// Extension of each frame's file in a camera's depth or colour folder ("" where there is none).
+// A file numbered beyond frame_count is a rig.json error.
+std::vector<std::string> scan_frame_folder(const fs::path& folder, std::initializer_list<const char*> extensions, int frames,
+                                           const fs::path& rig_path) {
+  std::vector<std::string> extension_of(frames);
+  for (const fs::directory_entry& entry : fs::directory_iterator(folder)) {
+    const int index = frame_index_of(entry.path(), extensions);
+    if (index < 0) continue;
+    if (index >= frames) {
+      throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
+                         (folder.parent_path().filename() / folder.filename() / entry.path().filename()).string() + " exists");
+    }
+    extension_of[index] = entry.path().extension().string();
+  }
+  return extension_of;
+}
+
 }  // namespace
 
 std::string frame_file_name(int frame, const std::string& extension) {
@@ -79,33 +96,16 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
       throw InvalidInput(depth_dir.string() + ": missing folder for rig.json cameras[" + std::to_string(c) + "] (\"" +
                          camera.name + "\")");
     }
-    std::vector<bool> has_depth(frames, false);
-    for (const fs::directory_entry& entry : fs::directory_iterator(depth_dir)) {
-      const int index = frame_index_of(entry.path(), {".png"});
-      if (index < 0) continue;
-      if (index >= frames) {
-        throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
-                           (fs::path(camera.name) / "depth" / entry.path().filename()).string() + " exists");
-      }
-      has_depth[index] = true;
-      last_frame_seen = std::max(last_frame_seen, index);
+    const std::vector<std::string> depth_ext = scan_frame_folder(depth_dir, {".png"}, frames, rig_path);
+    for (int f = 0; f < frames; ++f) {
+      if (!depth_ext[f].empty()) last_frame_seen = std::max(last_frame_seen, f);
     }
     std::vector<std::string>& color_ext = capture.color_extension_[c];
     color_ext.assign(frames, "");
     const fs::path color_dir = dir / camera.name / "color";
-    if (camera.has_color() && fs::is_directory(color_dir, ec)) {
-      for (const fs::directory_entry& entry : fs::directory_iterator(color_dir)) {
-        const int index = frame_index_of(entry.path(), {".jpg", ".png"});
-        if (index < 0) continue;
-        if (index >= frames) {
-          throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
-                             (fs::path(camera.name) / "color" / entry.path().filename()).string() + " exists");
-        }
-        color_ext[index] = entry.path().extension().string();
-      }
-    }
+    if (camera.has_color() && fs::is_directory(color_dir, ec)) color_ext = scan_frame_folder(color_dir, {".jpg", ".png"}, frames, rig_path);
     for (int f = 0; f < frames; ++f) {
-      if (!has_depth[f]) capture.missing_.push_back({static_cast<int>(c), f, false});
+      if (depth_ext[f].empty()) capture.missing_.push_back({static_cast<int>(c), f, false});
       if (camera.has_color() && color_ext[f].empty()) capture.missing_.push_back({static_cast<int>(c), f, true});
     }
   }
