@@ -24,19 +24,6 @@ namespace {
 
 constexpr int kFrames[] = {0, 15};
 
-// The volume write_synthetic_capture uses: samba-4cam's box, grown to hold the subject's first
-// frame with 0.3 m to spare, the floor kept outside.
-Box3d synthetic_volume(const SynthOptions& options) {
-  Box3d box{{-1.0, -1.0, 0.02}, {1.0, 1.0, 2.2}};
-  for (const Eigen::Vector3f& p : subject_mesh(options, 0).positions) {
-    const Eigen::Vector3d q = p.cast<double>();
-    box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));
-    box.max = box.max.cwiseMax(q + Eigen::Vector3d::Constant(0.3));
-  }
-  box.min.z() = std::max(box.min.z(), 0.02);
-  return box;
-}
-
 // Quality of one mode, averaged over the frames; counts are the worst frame's.
 struct ModeQuality {
   double area_ratio = 0;
@@ -95,7 +82,7 @@ struct CaseSpec {
 
 CaseQuality measure(const CaseSpec& spec) {
   Rig rig = make_ring_rig(spec.synth);
-  rig.volume = synthetic_volume(spec.synth);
+  rig.volume = synthetic_capture_volume(subject_mesh(spec.synth, 0));
   rig.frame_count = spec.synth.frames;
 
   // The observed truth is what the working cameras can see: a dead camera's view is no gap.

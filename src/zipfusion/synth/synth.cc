@@ -98,18 +98,6 @@ void add_color_noise(ColorImage& color, double sigma, std::uint64_t seed) {
   }
 }
 
-Box3d capture_volume(const TriangleMesh& first_subject) {
-  // The samba-4cam volume, grown to hold the subject's first frame with 0.3 m to spare.
-  Box3d box{{-1.0, -1.0, 0.02}, {1.0, 1.0, 2.2}};
-  for (const Eigen::Vector3f& p : first_subject.positions) {
-    const Eigen::Vector3d q = p.cast<double>();
-    box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));
-    box.max = box.max.cwiseMax(q + Eigen::Vector3d::Constant(0.3));
-  }
-  box.min.z() = std::max(box.min.z(), 0.02);  // the floor stays outside
-  return box;
-}
-
 }  // namespace
 
 void SynthOptions::validate() const {
@@ -128,6 +116,17 @@ void SynthOptions::validate() const {
   if (!subject_pattern.empty()) parse_frame_pattern(subject_pattern);
   human.validate();
   noise.validate();
+}
+
+Box3d synthetic_capture_volume(const TriangleMesh& first_subject) {
+  Box3d box{{-1.0, -1.0, 0.02}, {1.0, 1.0, 2.2}};
+  for (const Eigen::Vector3f& p : first_subject.positions) {
+    const Eigen::Vector3d q = p.cast<double>();
+    box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));
+    box.max = box.max.cwiseMax(q + Eigen::Vector3d::Constant(0.3));
+  }
+  box.min.z() = std::max(box.min.z(), 0.02);  // the floor stays outside
+  return box;
 }
 
 Rig make_ring_rig(const SynthOptions& options) {
@@ -222,7 +221,7 @@ SynthResult write_synthetic_capture(const fs::path& out_dir, const SynthOptions&
   result.true_rig = make_ring_rig(options);
   result.rig = miscalibrate(result.true_rig, options);
   const TriangleMesh first_subject = subject_mesh(options, 0);
-  result.rig.volume = result.true_rig.volume = capture_volume(first_subject);
+  result.rig.volume = result.true_rig.volume = synthetic_capture_volume(first_subject);
 
   std::string staging_name = out_dir.filename().string();
   staging_name.insert(0, 1, '.');
