@@ -1,0 +1,111 @@
+// Registration variants against ground truth: for each variant, GPA-ICP on samba-4cam (or the
+// capture given as the first argument) started from the perturbed rig.json and from the true
+// poses, and the worst camera's pose error relative to camera 0. The table in docs/design.md
+// ("Registration") comes from this program: build/zf_registration_variants [CAPTURE].
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "zipfusion/io/capture.h"
+#include "zipfusion/registration/gpa_icp.h"
+
+using namespace zipfusion;
+
+namespace {
+
+struct Variant {
+  std::string name;
+  std::function<void(RegistrationOptions&)> change;
+  std::vector<int> frames;
+};
+
+struct Worst {
+  double mm = 0, deg = 0;
+};
+
+Worst worst_error(const std::vector<Rigid3d>& poses, const Rig& truth) {
+  std::vector<Rigid3d> true_poses;
+  for (const CameraModel& cam : truth.cameras) true_poses.push_back(cam.world_from_depth);
+  Worst w;
+  for (const RelativePoseError& e : relative_pose_errors(poses, true_poses)) {
+    w.mm = std::max(w.mm, e.translation_m * 1000);
+    w.deg = std::max(w.deg, e.rotation_deg);
+  }
+  return w;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string dir = argc > 1 && argv[1][0] != 0 ? argv[1] : std::string(ZF_SOURCE_DIR) + "/../shared/data/samba-4cam";
+  const std::string only = argc > 2 ? argv[2] : "";
+  const Capture capture = Capture::open(dir);
+  const Rig& perturbed = capture.rig();
+  const Rig& truth = *capture.ground_truth_rig();
+  std::vector<int> eight;
+  for (int f = 0; f < 40 && f < capture.frame_count(); f += 5) eight.push_back(f);
+  std::vector<int> all;
+  for (int f = 0; f < capture.frame_count(); f += 2) all.push_back(f);
+
+  const std::vector<Variant> variants = {
+      {"point-to-point, raw depth, no weights, no trim, 1 frame",
+       [](RegistrationOptions& o) { o.point_to_plane = false; o.surface = RegistrationSurface::kRaw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, raw depth, no weights, no trim, 1 frame",
+       [](RegistrationOptions& o) { o.surface = RegistrationSurface::kRaw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, bilateral, no weights, no trim, 1 frame", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kBilateral; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, bilateral, σ(z) weights, no trim, 1 frame", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kBilateral; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 1 frame", [](RegistrationOptions&) {}, {0}},
+      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions&) {}, eight},
+      {"point-to-point, bilateral, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions& o) { o.point_to_plane = false; }, eight},
+      {"point-to-plane, raw depth, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kRaw; }, eight},
+      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 8 frames, finest level 0", [](RegistrationOptions& o) { o.finest_level = 0; }, eight},
+      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 20 frames", [](RegistrationOptions&) {}, all},
+      {"as 5, without the floor", [](RegistrationOptions& o) { o.below_volume_m = 0; }, eight},
+      {"as 5, no trim", [](RegistrationOptions& o) { o.trim_fraction = 0; }, eight},
+      {"as 5, no weights", [](RegistrationOptions& o) { o.noise_weights = false; }, eight},
+      {"as 5, normal step 8 px", [](RegistrationOptions& o) { o.normal_step_px = 8; }, eight},
+      {"as 5, 1 frame", [](RegistrationOptions&) {}, {0}},
+  };
+
+  std::printf("| variant | from perturbed: worst mm / deg | from truth: worst mm / deg | ms |\n| --- | --- | --- | --- |\n");
+  for (size_t v = 0; v < variants.size(); ++v) {
+    if (!only.empty() && std::to_string(v) != only) continue;
+    const Variant& variant = variants[v];
+    RegistrationOptions options;
+    variant.change(options);
+    options.validate();
+    std::vector<std::vector<Image<float>>> depth;
+    for (int f : variant.frames) depth.push_back(registration_depth(perturbed, capture.load_frame(f), options));
+    const auto start = std::chrono::steady_clock::now();
+    const RegistrationResult from_perturbed = register_rig(perturbed, depth, options);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    const RegistrationResult from_truth = register_rig(truth, depth, options);
+    const Worst a = worst_error(from_perturbed.world_from_depth, truth), b = worst_error(from_truth.world_from_depth, truth);
+    if (std::getenv("ZF_DETAIL")) {
+      for (size_t c = 0; c < truth.cameras.size(); ++c) {
+        const Rigid3d d = truth.cameras[c].world_from_depth.inverse() * from_truth.world_from_depth[c];
+        const Eigen::AngleAxisd aa(Rigid3d(truth.cameras[0].world_from_depth.inverse() * from_truth.world_from_depth[0]).linear());
+        const Eigen::AngleAxisd ac(d.linear());
+        const Eigen::Vector3d shift = from_truth.world_from_depth[c].translation() - truth.cameras[c].world_from_depth.translation();
+        std::printf("  cam%zu from truth: world shift mm %.1f %.1f %.1f, rot %.3f deg about world %.2f %.2f %.2f, rmse %.2f mm n %d\n", c, shift.x() * 1000,
+                    shift.y() * 1000, shift.z() * 1000, ac.angle() * 180 / 3.14159265,
+                    (truth.cameras[c].world_from_depth.linear() * ac.axis()).x(), (truth.cameras[c].world_from_depth.linear() * ac.axis()).y(),
+                    (truth.cameras[c].world_from_depth.linear() * ac.axis()).z(), from_truth.rmse_after_m[c] * 1000, from_truth.correspondences_after[c]);
+        (void)aa;
+      }
+    }
+    std::printf("| %s | %.1f / %.3f | %.1f / %.3f | %.0f |\n", variant.name.c_str(), a.mm, a.deg, b.mm, b.deg, ms);
+    std::fflush(stdout);
+  }
+  const Worst start = worst_error([&] {
+    std::vector<Rigid3d> p;
+    for (const CameraModel& cam : perturbed.cameras) p.push_back(cam.world_from_depth);
+    return p;
+  }(), truth);
+  std::printf("(rig.json itself: %.1f mm / %.3f deg)\n", start.mm, start.deg);
+  return 0;
+}

@@ -1,0 +1,365 @@
+#include "zipfusion/registration/gpa_icp.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <nanoflann.hpp>
+#include <numbers>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/core/parallel.h"
+
+namespace zipfusion {
+
+void RegistrationOptions::validate() const {
+  if (coarsest_level < 0 || coarsest_level > 5) throw InvalidInput("registration.coarsest_level: must be in [0, 5]");
+  if (finest_level < 0 || finest_level > coarsest_level) throw InvalidInput("registration.finest_level: must be in [0, coarsest_level]");
+  if (iterations_per_level < 1 || iterations_per_level > 100) throw InvalidInput("registration.iterations_per_level: must be in [1, 100]");
+  if (!(start_distance_m > 0)) throw InvalidInput("registration.start_distance_m: must be positive");
+  if (!(end_distance_m > 0 && end_distance_m <= start_distance_m)) throw InvalidInput("registration.end_distance_m: must be in (0, start_distance_m]");
+  if (!(max_normal_angle_deg > 0 && max_normal_angle_deg <= 180)) throw InvalidInput("registration.max_normal_angle_deg: must be in (0, 180]");
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 90)) throw InvalidInput("registration.max_view_angle_deg: must be in (0, 90]");
+  if (fit_radius_px < 1 || fit_radius_px > 16) throw InvalidInput("registration.fit_radius_px: must be in [1, 16]");
+  if (!(fit_gate_m > 0)) throw InvalidInput("registration.fit_gate_m: must be positive");
+  if (normal_step_px < 1 || normal_step_px > 32) throw InvalidInput("registration.normal_step_px: must be in [1, 32]");
+  if (!(trim_fraction >= 0 && trim_fraction < 1)) throw InvalidInput("registration.trim_fraction: must be in [0, 1)");
+  if (min_correspondences < 6) throw InvalidInput("registration.min_correspondences: must be at least 6");
+  if (!(converged_rad >= 0)) throw InvalidInput("registration.converged_rad: must be >= 0");
+  if (!(below_volume_m >= 0)) throw InvalidInput("registration.below_volume_m: must be >= 0");
+  if (num_threads < 0) throw InvalidInput("registration.num_threads: must be >= 0");
+  filter.validate();
+  foreground.validate();
+}
+
+namespace {
+
+using Vec3 = Eigen::Vector3f;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+// nanoflann's view of a cloud's points (camera frame).
+struct CloudAdaptor {
+  const std::vector<Vec3>* points = nullptr;
+  size_t kdtree_get_point_count() const { return points->size(); }
+  float kdtree_get_pt(size_t i, size_t dim) const { return (*points)[i][static_cast<int>(dim)]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, std::uint32_t>;
+
+// One camera's samples of one frame at one level. Not movable: the tree refers to the adaptor.
+struct Cloud {
+  std::vector<Vec3> points;   // camera frame
+  std::vector<Vec3> normals;  // camera frame, towards the camera
+  std::vector<float> sigma;   // axial noise at the point's depth, metres
+  std::vector<Vec3> world_points, world_normals;
+  CloudAdaptor adaptor;
+  std::unique_ptr<KdTree> tree;
+
+  Cloud() = default;
+  Cloud(const Cloud&) = delete;
+  Cloud& operator=(const Cloud&) = delete;
+  bool empty() const { return points.empty(); }
+};
+
+std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k, int stride, const RegistrationOptions& o) {
+  auto cloud = std::make_unique<Cloud>();
+  if (depth.empty()) return cloud;
+  const int grid_width = (depth.width + stride - 1) / stride, grid_height = (depth.height + stride - 1) / stride;
+  const int step = std::max(stride, o.normal_step_px);
+  // A neighbour `step` pixels away on a surface seen at up to max_view_angle differs in depth by
+  // at most step·z/f·tan(angle); twice that allows for noise.
+  const float cos_view = static_cast<float>(std::cos(o.max_view_angle_deg * std::numbers::pi / 180));
+  for (int i = 0; i < grid_width * grid_height; ++i) {
+    Vec3 p, n;
+    const int u = (i % grid_width) * stride, v = (i / grid_width) * stride;
+    const float z = depth(std::min(u, depth.width - 1), std::min(v, depth.height - 1));
+    const float max_jump = 2.0f * step * z / static_cast<float>(k.fx) * std::tan(std::acos(cos_view)) + 3 * kinect_axial_sigma(z);
+    const bool ok = o.surface == RegistrationSurface::kDisparityFit
+                        ? disparity_fit_sample(i, depth.data.data(), depth.width, depth.height, stride, std::max(stride, o.fit_radius_px),
+                                               static_cast<float>(o.fit_gate_m), k, cos_view, &p, &n)
+                        : surface_sample(i, depth.data.data(), depth.width, depth.height, stride, step, k, max_jump, cos_view, &p, &n);
+    if (!ok) continue;
+    cloud->points.push_back(p);
+    cloud->normals.push_back(n);
+    cloud->sigma.push_back(kinect_axial_sigma(p.z()));
+  }
+  if (cloud->points.empty()) return cloud;
+  cloud->adaptor.points = &cloud->points;
+  cloud->tree = std::make_unique<KdTree>(3, cloud->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  return cloud;
+}
+
+void to_world(Cloud& cloud, const Rigid3d& world_from_depth) {
+  const Rigid3f t = world_from_depth.cast<float>();
+  cloud.world_points.resize(cloud.points.size());
+  cloud.world_normals.resize(cloud.points.size());
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    cloud.world_points[i] = t * cloud.points[i];
+    cloud.world_normals[i] = t.linear() * cloud.normals[i];
+  }
+}
+
+int nearest(const Cloud& cloud, const Vec3& query_in_cam, float* distance_sq) {
+  std::uint32_t index = 0;
+  float d2 = 0;
+  if (cloud.tree->knnSearch(query_in_cam.data(), 1, &index, &d2) == 0) return -1;
+  *distance_sq = d2;
+  return static_cast<int>(index);
+}
+
+// One correspondence's linearised residual: r + J·x, with x the 6N pose updates (ω, t) in the world
+// frame, J nonzero only in the two cameras' blocks.
+struct Residual {
+  int a = 0, b = 0;
+  Eigen::Matrix<float, 3, 6> ja, jb;  // point-to-plane uses row 0 only
+  Vec3 r;
+  float scaled = 0;  // |r| / σ, for trimming
+  float weight = 0;
+};
+
+struct PairMatches {
+  std::vector<Residual> residuals;
+};
+
+struct Poses {
+  std::vector<Rigid3d> world_from_depth;
+};
+
+// Mutual closest points between clouds a and b of one frame within max_distance, as residuals.
+void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& poses, float max_distance, const RegistrationOptions& o,
+                std::vector<Residual>& out) {
+  out.clear();
+  const Rigid3f b_from_world = poses.world_from_depth[b].inverse().cast<float>();
+  const Rigid3f a_from_world = poses.world_from_depth[a].inverse().cast<float>();
+  const Vec3 centre_a = poses.world_from_depth[a].translation().cast<float>();
+  const Vec3 centre_b = poses.world_from_depth[b].translation().cast<float>();
+  const float max_d2 = max_distance * max_distance;
+  const float cos_normal = static_cast<float>(std::cos(o.max_normal_angle_deg * std::numbers::pi / 180));
+  const int count = static_cast<int>(ca.points.size());
+  std::vector<int> match(count, -1);
+  parallel_for(
+      0, count,
+      [&](int i) {
+        float d2 = 0;
+        const int j = nearest(cb, b_from_world * ca.world_points[i], &d2);
+        if (j < 0 || d2 > max_d2) return;
+        if (ca.world_normals[i].dot(cb.world_normals[j]) < cos_normal) return;
+        float back_d2 = 0;
+        if (nearest(ca, a_from_world * cb.world_points[j], &back_d2) != i) return;
+        match[i] = j;
+      },
+      o.num_threads);
+  for (int i = 0; i < count; ++i) {
+    const int j = match[i];
+    if (j < 0) continue;
+    const Vec3& pa = ca.world_points[i];
+    const Vec3& pb = cb.world_points[j];
+    Residual res;
+    res.a = a;
+    res.b = b;
+    const Vec3 diff = pa - pb;
+    const float sa = ca.sigma[i], sb = cb.sigma[j];
+    float variance = 0;
+    if (o.point_to_plane) {
+      const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
+      const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
+      variance = sa * sa * along_a * along_a + sb * sb * along_b * along_b;
+      res.r = Vec3(n.dot(diff), 0, 0);
+      res.ja.setZero();
+      res.jb.setZero();
+      res.ja.block<1, 3>(0, 0) = pa.cross(n).transpose();
+      res.ja.block<1, 3>(0, 3) = n.transpose();
+      res.jb.block<1, 3>(0, 0) = -pb.cross(n).transpose();
+      res.jb.block<1, 3>(0, 3) = -n.transpose();
+    } else {
+      variance = sa * sa + sb * sb;
+      res.r = diff;
+      Eigen::Matrix3f skew_a, skew_b;
+      skew_a << 0, pa.z(), -pa.y(), -pa.z(), 0, pa.x(), pa.y(), -pa.x(), 0;  // ω × p = −[p]× ω
+      skew_b << 0, pb.z(), -pb.y(), -pb.z(), 0, pb.x(), pb.y(), -pb.x(), 0;
+      res.ja << skew_a, Eigen::Matrix3f::Identity();
+      res.jb << -skew_b, -Eigen::Matrix3f::Identity();
+    }
+    const float sigma = std::sqrt(std::max(variance, 1e-8f));
+    res.scaled = res.r.norm() / sigma;
+    // Weights relative to 1 mm so the normal equations stay near unit scale.
+    res.weight = o.noise_weights ? 1e-6f / (sigma * sigma) : 1.0f;
+    out.push_back(res);
+  }
+}
+
+// Drops the trim_fraction of residuals with the largest |r|/σ.
+void trim(std::vector<Residual>& residuals, double fraction) {
+  if (fraction <= 0 || residuals.empty()) return;
+  const size_t keep = residuals.size() - static_cast<size_t>(fraction * static_cast<double>(residuals.size()));
+  std::nth_element(residuals.begin(), residuals.begin() + (keep - 1), residuals.end(),
+                   [](const Residual& x, const Residual& y) { return x.scaled < y.scaled; });
+  residuals.resize(keep);
+}
+
+using Clouds = std::vector<std::vector<std::unique_ptr<Cloud>>>;  // [frame][camera]
+
+Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, int level, const RegistrationOptions& o) {
+  const int cameras = static_cast<int>(rig.cameras.size());
+  const int frames = static_cast<int>(depth_m.size());
+  Clouds clouds(frames);
+  for (auto& f : clouds) f.resize(cameras);
+  parallel_for(
+      0, frames * cameras,
+      [&](int fc) {
+        const int f = fc / cameras, c = fc % cameras;
+        clouds[f][c] = make_cloud(depth_m[f][c], rig.cameras[c].depth_intrinsics, 1 << level, o);
+      },
+      o.num_threads);
+  return clouds;
+}
+
+struct Accumulated {
+  std::vector<double> sum_sq;  // per camera
+  std::vector<int> count;
+};
+
+// All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
+// normal equations H x = −g.
+Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const RegistrationOptions& o, Eigen::MatrixXd* h,
+                       Eigen::VectorXd* g, bool trimmed) {
+  const int cameras = static_cast<int>(poses.world_from_depth.size());
+  Accumulated acc{std::vector<double>(cameras, 0), std::vector<int>(cameras, 0)};
+  std::vector<Residual> residuals;
+  for (auto& frame : clouds) {
+    for (int c = 0; c < cameras; ++c) {
+      if (!frame[c]->empty()) to_world(*frame[c], poses.world_from_depth[c]);
+    }
+    for (int a = 0; a < cameras; ++a) {
+      for (int b = a + 1; b < cameras; ++b) {
+        if (frame[a]->empty() || frame[b]->empty()) continue;
+        match_pair(*frame[a], *frame[b], a, b, poses, max_distance, o, residuals);
+        if (static_cast<int>(residuals.size()) < o.min_correspondences) continue;
+        if (trimmed) trim(residuals, o.trim_fraction);
+        const int rows = o.point_to_plane ? 1 : 3;
+        for (const Residual& res : residuals) {
+          const double e2 = res.r.squaredNorm();
+          acc.sum_sq[a] += e2;
+          acc.sum_sq[b] += e2;
+          ++acc.count[a];
+          ++acc.count[b];
+          if (h == nullptr) continue;
+          const Eigen::Matrix<double, 3, 6> ja = res.ja.cast<double>(), jb = res.jb.cast<double>();
+          const Eigen::Vector3d r = res.r.cast<double>();
+          const double w = res.weight;
+          const int ia = 6 * a, ib = 6 * b;
+          h->block<6, 6>(ia, ia) += w * ja.topRows(rows).transpose() * ja.topRows(rows);
+          h->block<6, 6>(ib, ib) += w * jb.topRows(rows).transpose() * jb.topRows(rows);
+          h->block<6, 6>(ia, ib) += w * ja.topRows(rows).transpose() * jb.topRows(rows);
+          h->block<6, 6>(ib, ia) += w * jb.topRows(rows).transpose() * ja.topRows(rows);
+          g->segment<6>(ia) += w * ja.topRows(rows).transpose() * r.head(rows);
+          g->segment<6>(ib) += w * jb.topRows(rows).transpose() * r.head(rows);
+        }
+      }
+    }
+  }
+  return acc;
+}
+
+}  // namespace
+
+std::vector<Image<float>> registration_depth(const Rig& rig, const FrameSet& frames, const RegistrationOptions& options) {
+  const int cameras = static_cast<int>(rig.cameras.size());
+  assert(static_cast<int>(frames.cameras.size()) == cameras);
+  std::vector<Image<float>> depth(cameras);
+  const BilateralKernel kernel(options.filter);
+  std::optional<Box3d> volume = rig.volume;
+  if (volume) volume->min.z() -= options.below_volume_m;
+  parallel_for(
+      0, cameras,
+      [&](int c) {
+        if (!frames.cameras[c].has_depth) return;
+        Image<float> foreground;
+        extract_foreground(frames.cameras[c].depth, rig.depth_unit_m, rig.cameras[c], volume, options.foreground, foreground);
+        if (options.surface == RegistrationSurface::kBilateral) {
+          bilateral_filter(foreground, kernel, depth[c], 1);
+        } else {
+          depth[c] = std::move(foreground);
+        }
+      },
+      options.num_threads);
+  return depth;
+}
+
+RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, const RegistrationOptions& options) {
+  const int cameras = static_cast<int>(rig.cameras.size());
+  Poses poses;
+  for (const CameraModel& cam : rig.cameras) poses.world_from_depth.push_back(cam.world_from_depth);
+  RegistrationResult result;
+  const int levels = options.coarsest_level - options.finest_level + 1;
+  const int total_iterations = levels * options.iterations_per_level;
+  const double shrink = total_iterations > 1 ? std::pow(options.end_distance_m / options.start_distance_m, 1.0 / (total_iterations - 1)) : 1.0;
+
+  Clouds clouds;
+  int schedule_step = 0;
+  for (int level = options.coarsest_level; level >= options.finest_level; --level) {
+    clouds = make_clouds(rig, depth_m, level, options);
+    if (level == options.coarsest_level) {
+      // Residuals before, at the input poses: measured on the finest level with the end distance.
+      Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
+      const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+      for (int c = 0; c < cameras; ++c) result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
+    }
+    for (int it = 0; it < options.iterations_per_level; ++it, ++schedule_step) {
+      const float distance = static_cast<float>(options.start_distance_m * std::pow(shrink, schedule_step));
+      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);
+      accumulate(clouds, poses, distance, options, &h, &g, true);
+      // Camera 0 is the gauge: solve for the others only. A tiny damping keeps cameras without
+      // correspondences (or a degenerate overlap) where they are.
+      const int n = 6 * (cameras - 1);
+      if (n == 0) break;
+      Eigen::MatrixXd hf = h.bottomRightCorner(n, n);
+      const double damping = 1e-9 * std::max(1.0, hf.diagonal().maxCoeff());
+      hf.diagonal().array() += damping;
+      const Eigen::VectorXd x = hf.ldlt().solve(-g.tail(n));
+      ++result.iterations;
+      double largest = 0;
+      for (int c = 1; c < cameras; ++c) {
+        const Vector6d step = x.segment<6>(6 * (c - 1));
+        const Eigen::Vector3d omega = step.head<3>();
+        largest = std::max({largest, omega.norm(), step.tail<3>().norm()});
+        Rigid3d update = Rigid3d::Identity();
+        if (omega.norm() > 0) update.linear() = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix();
+        update.translation() = step.tail<3>();
+        poses.world_from_depth[c] = update * poses.world_from_depth[c];
+      }
+      const bool last_level = level == options.finest_level;
+      result.converged = last_level && largest < options.converged_rad;
+      if (largest < options.converged_rad) {
+        schedule_step += options.iterations_per_level - 1 - it;
+        break;
+      }
+    }
+  }
+  const Accumulated after = accumulate(clouds, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+  for (int c = 0; c < cameras; ++c) {
+    result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
+    result.correspondences_after.push_back(after.count[c]);
+  }
+  result.world_from_depth = poses.world_from_depth;
+  return result;
+}
+
+std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth) {
+  assert(world_from_depth.size() == true_world_from_depth.size() && !world_from_depth.empty());
+  std::vector<RelativePoseError> errors;
+  const Rigid3d first_from_world = world_from_depth[0].inverse(), true_first_from_world = true_world_from_depth[0].inverse();
+  for (size_t c = 0; c < world_from_depth.size(); ++c) {
+    const Rigid3d first_from_cam = first_from_world * world_from_depth[c];
+    const Rigid3d true_first_from_cam = true_first_from_world * true_world_from_depth[c];
+    errors.push_back({(first_from_cam.translation() - true_first_from_cam.translation()).norm(),
+                      rotation_angle_deg(true_first_from_cam.inverse() * first_from_cam)});
+  }
+  return errors;
+}
+
+}  // namespace zipfusion

@@ -1,0 +1,182 @@
+#pragma once
+//! \file
+//! Global registration of all cameras at once (paper Section III-A): GPA-ICP. Correspondences are
+//! mutual closest points (nanoflann k-d trees) between every two cameras' clouds of the same
+//! frame, within a distance that shrinks over the iterations; one joint solve then moves every
+//! camera (camera 0 fixed as the gauge) so that corresponding points meet. Generalised Procrustes
+//! Analysis minimises each correspondence tuple's squared distances to its centroid, which for
+//! pairs is half their squared distance; here that objective is measured along the surface normal
+//! (symmetric point-to-plane: the two points' mean normal) and solved jointly by one Gauss-Newton
+//! step per iteration, so errors are spread over the ring rather than chained.
+//!
+//! Against the Kinect's noise (docs/design.md, "Registration"): clouds come from bilateral-filtered
+//! depth, normals from the filtered surface at a few pixels' scale, each correspondence is weighted
+//! by the sensor's axial noise σ(z) along the normal, the worst residuals of each pair are trimmed,
+//! and several frames (where the subject has moved) add their correspondences to the same solve.
+//! Coarse to fine: depth subsampled by 2^L, at most `iterations_per_level` per level (paper: 4).
+//!
+//! Thread safety: the functions are pure; parallel inside (`num_threads`).
+
+#include <vector>
+
+#include "zipfusion/core/geometry.h"
+#include "zipfusion/core/image.h"
+#include "zipfusion/depth/bilateral.h"
+#include "zipfusion/depth/foreground.h"
+#include "zipfusion/io/capture.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+
+//! How points and normals are taken from noisy depth (docs/design.md, "Registration").
+enum class RegistrationSurface {
+  kDisparityFit,  // quadratic fit of inverse depth in a window: planes exact, curvature unbiased
+  kBilateral,     // the paper's bilateral filter, normals by central differences (biased on oblique curved surfaces)
+  kRaw,           // raw depth, normals by central differences
+};
+
+struct RegistrationOptions {
+  int coarsest_level = 2;          // L: the first level uses depth subsampled by 2^L (paper: coarse to fine)
+  int finest_level = 1;            // the last level; 0 = full resolution
+  int iterations_per_level = 4;    // paper: at most 4
+  double start_distance_m = 0.15;  // metres: correspondence distance at the first iteration (covers ~2°/5 cm)
+  double end_distance_m = 0.015;   // metres: at the last iteration (geometric shrink in between)
+  double max_normal_angle_deg = 45;  // degrees: corresponding points' normals must agree this well
+  double max_view_angle_deg = 75;    // degrees: points seen more obliquely (noisy, silhouettes) are not used
+  int normal_step_px = 4;          // pixels (full resolution): normals from neighbours this far apart, at least the level's stride
+  double trim_fraction = 0.1;      // share of each pair's correspondences with the largest |residual|/σ dropped
+  bool point_to_plane = true;      // false: point-to-point (the plain GPA of the paper)
+  bool noise_weights = true;       // weight by 1/σ² from the Kinect v1 axial noise σ(z) (Nguyen et al. 2012)
+  RegistrationSurface surface = RegistrationSurface::kDisparityFit;
+  int fit_radius_px = 4;           // pixels (full resolution): window half-width of the disparity fit, at least the level's stride
+  double fit_gate_m = 0.05;        // metres: window pixels farther in depth from the centre belong to another surface
+  BilateralOptions filter;         // kBilateral only: paper's values
+  ForegroundOptions foreground;
+  double below_volume_m = 0.3;     // metres: the volume crop reaches this far below the volume, so the floor (static, seen by all) pins the cameras' tilt
+  int min_correspondences = 50;    // a pair with fewer in a frame does not count
+  double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
+  int num_threads = 0;             // 0 = all hardware threads
+
+  void validate() const;  // throws InvalidInput naming the field
+};
+
+struct RegistrationResult {
+  std::vector<Rigid3d> world_from_depth;   // refined poses; camera 0's unchanged
+  std::vector<double> rmse_before_m;       // per camera: point-to-plane RMS of its correspondences at the input poses
+  std::vector<double> rmse_after_m;        // the same at the refined poses (finest level, end distance)
+  std::vector<int> correspondences_after;  // per camera, at the refined poses
+  int iterations = 0;                      // Gauss-Newton steps taken over all levels
+  bool converged = false;                  // the finest level's last step moved less than converged_rad
+};
+
+//! Foreground depth in metres (bilateral-filtered with kBilateral) of every camera of one
+//! frame set; a camera without depth gets an empty image. Uses the rig's poses for the volume crop.
+std::vector<Image<float>> registration_depth(const Rig& rig, const FrameSet& frames, const RegistrationOptions& options);
+
+//! Refines the poses of all cameras from depth_m[frame][camera] (metres, 0 = none; empty image =
+//! camera absent from that frame) starting at `rig`'s poses. Precondition: every frame has
+//! rig.cameras.size() images; options valid. Cameras that overlap no other keep their pose.
+RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, const RegistrationOptions& options);
+
+//! Error of one camera's pose relative to camera 0, against the truth: the camera's centre and
+//! rotation as seen from camera 0.
+struct RelativePoseError {
+  double translation_m = 0;
+  double rotation_deg = 0;
+};
+std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth);
+
+//! Kinect v1 axial noise σ(z) = 1.2 mm + 1.9 mm·(z − 0.4 m)² (Nguyen, Izadi & Lovell 2012), metres.
+inline float kinect_axial_sigma(float z) { return 0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f); }
+
+//! Element function: sample `index` of a depth map subsampled by `stride` (grid width
+//! ceil(width/stride)). Writes the point and its unit normal (towards the camera) in the camera
+//! frame and returns true when the depth there and at the four neighbours `step` pixels away is
+//! valid, the neighbours lie on the same surface (depth within max_jump_m) and the surface is seen
+//! at most max_view_angle from its normal (cos_max_view is its cosine).
+inline bool surface_sample(int index, const float* depth, int width, int height, int stride, int step, const Intrinsics& k,
+                           float max_jump_m, float cos_max_view, Eigen::Vector3f* point, Eigen::Vector3f* normal) {
+  const int grid_width = (width + stride - 1) / stride;
+  const int u = (index % grid_width) * stride, v = (index / grid_width) * stride;
+  if (u - step < 0 || v - step < 0 || u + step >= width || v + step >= height) return false;
+  const float z = depth[v * width + u];
+  if (z <= 0.0f) return false;
+  const float zl = depth[v * width + u - step], zr = depth[v * width + u + step];
+  const float zu = depth[(v - step) * width + u], zd = depth[(v + step) * width + u];
+  if (zl <= 0.0f || zr <= 0.0f || zu <= 0.0f || zd <= 0.0f) return false;
+  const auto far = [&](float a) { return a > z + max_jump_m || a < z - max_jump_m; };
+  if (far(zl) || far(zr) || far(zu) || far(zd)) return false;
+  const auto fu = static_cast<float>(u), fv = static_cast<float>(v), fs = static_cast<float>(step);
+  const Eigen::Vector3f dx = unproject(k, fu + fs, fv, zr) - unproject(k, fu - fs, fv, zl);
+  const Eigen::Vector3f dy = unproject(k, fu, fv + fs, zd) - unproject(k, fu, fv - fs, zu);
+  Eigen::Vector3f n = dx.cross(dy);
+  const float length = n.norm();
+  if (!(length > 0.0f)) return false;
+  n /= length;
+  const Eigen::Vector3f p = unproject(k, fu, fv, z);
+  float facing = -n.dot(p) / p.norm();
+  if (facing < 0.0f) {
+    n = -n;
+    facing = -facing;
+  }
+  if (facing < cos_max_view) return false;
+  *point = p;
+  *normal = n;
+  return true;
+}
+
+//! Element function: sample `index` of a depth map subsampled by `stride`, from a least-squares
+//! fit of inverse depth w = 1/z as a quadratic in (du, dv) over the window of half-width `radius`
+//! (pixels within gate_m of the centre's depth). Inverse depth is linear in the pixel coordinates
+//! on a plane and is what the Kinect measures (disparity), so the fit neither flattens curved
+//! surfaces seen obliquely (a depth average does) nor weights near and far ends of the window
+//! differently. Returns false when under 60 % of the window is usable or the fit is degenerate;
+//! otherwise writes the fitted point at the pixel and its unit normal (towards the camera).
+inline bool disparity_fit_sample(int index, const float* depth, int width, int height, int stride, int radius, float gate_m, const Intrinsics& k,
+                                 float cos_max_view, Eigen::Vector3f* point, Eigen::Vector3f* normal) {
+  const int grid_width = (width + stride - 1) / stride;
+  const int u = (index % grid_width) * stride, v = (index / grid_width) * stride;
+  if (u - radius < 0 || v - radius < 0 || u + radius >= width || v + radius >= height) return false;
+  const float zc = depth[v * width + u];
+  if (zc <= 0.0f) return false;
+  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
+  int used = 0;
+  const double scale = 1.0 / radius;
+  for (int dv = -radius; dv <= radius; ++dv) {
+    for (int du = -radius; du <= radius; ++du) {
+      const float z = depth[(v + dv) * width + u + du];
+      if (z <= 0.0f || z > zc + gate_m || z < zc - gate_m) continue;
+      const double x = du * scale, y = dv * scale;
+      const Eigen::Matrix<double, 6, 1> basis(1, x, y, x * x, x * y, y * y);
+      ata.selfadjointView<Eigen::Lower>().rankUpdate(basis);
+      atb += basis / z;
+      ++used;
+    }
+  }
+  const int side = 2 * radius + 1;
+  if (used * 10 < side * side * 6) return false;
+  ata = ata.selfadjointView<Eigen::Lower>();
+  const Eigen::Matrix<double, 6, 1> c = ata.ldlt().solve(atb);
+  const double w = c[0], wu = c[1] * scale, wv = c[2] * scale;  // inverse depth and its derivatives per pixel
+  if (!(w > 0) || !std::isfinite(w)) return false;
+  // P(u, v) = ray(u, v) / w with ray = ((u − cx)/fx, (v − cy)/fy, 1); tangents by the product rule.
+  const Eigen::Vector3d ray((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
+  const Eigen::Vector3d tu = Eigen::Vector3d(1.0 / k.fx, 0, 0) / w - ray * (wu / (w * w));
+  const Eigen::Vector3d tv = Eigen::Vector3d(0, 1.0 / k.fy, 0) / w - ray * (wv / (w * w));
+  Eigen::Vector3d n = tu.cross(tv);
+  const double length = n.norm();
+  if (!(length > 0)) return false;
+  n /= length;
+  double facing = -n.dot(ray) / ray.norm();
+  if (facing < 0) {
+    n = -n;
+    facing = -facing;
+  }
+  if (facing < cos_max_view) return false;
+  *point = (ray / w).cast<float>();
+  *normal = n.cast<float>();
+  return true;
+}
+
+}  // namespace zipfusion
