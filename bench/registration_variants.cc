@@ -51,25 +51,33 @@ int main(int argc, char** argv) {
   std::vector<int> all;
   for (int f = 0; f < capture.frame_count(); f += 2) all.push_back(f);
 
+  std::vector<int> four;
+  for (int f = 0; f < 40 && f < capture.frame_count(); f += 10) four.push_back(f);
+  using O = RegistrationOptions&;
+  const auto raw = RegistrationSurface::kRaw, bilateral = RegistrationSurface::kBilateral;
+  // Each variant changes the final method (the defaults) in the way its name says.
   const std::vector<Variant> variants = {
-      {"point-to-point, raw depth, no weights, no trim, 1 frame",
-       [](RegistrationOptions& o) { o.point_to_plane = false; o.surface = RegistrationSurface::kRaw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
-      {"point-to-plane, raw depth, no weights, no trim, 1 frame",
-       [](RegistrationOptions& o) { o.surface = RegistrationSurface::kRaw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
-      {"point-to-plane, bilateral, no weights, no trim, 1 frame", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kBilateral; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
-      {"point-to-plane, bilateral, σ(z) weights, no trim, 1 frame", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kBilateral; o.trim_fraction = 0; }, {0}},
-      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 1 frame", [](RegistrationOptions&) {}, {0}},
-      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions&) {}, eight},
-      {"point-to-point, bilateral, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions& o) { o.point_to_plane = false; }, eight},
-      {"point-to-plane, raw depth, σ(z) weights, trim 10%, 8 frames", [](RegistrationOptions& o) { o.surface = RegistrationSurface::kRaw; }, eight},
-      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 8 frames, finest level 0", [](RegistrationOptions& o) { o.finest_level = 0; }, eight},
-      {"point-to-plane, bilateral, σ(z) weights, trim 10%, 20 frames", [](RegistrationOptions&) {}, all},
-      {"as 5, without the floor", [](RegistrationOptions& o) { o.below_volume_m = 0; }, eight},
-      {"as 5, no trim", [](RegistrationOptions& o) { o.trim_fraction = 0; }, eight},
-      {"as 5, no weights", [](RegistrationOptions& o) { o.noise_weights = false; }, eight},
-      {"as 5, normal step 8 px", [](RegistrationOptions& o) { o.normal_step_px = 8; }, eight},
-      {"as 5, 1 frame", [](RegistrationOptions&) {}, {0}},
+      {"point-to-point (the paper's GPA), raw depth, no σ weights, no trim, 1 frame",
+       [=](O o) { o.point_to_plane = false; o.surface = raw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, raw depth, no σ weights, no trim, 1 frame", [=](O o) { o.surface = raw; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, bilateral, no σ weights, no trim, 1 frame", [=](O o) { o.surface = bilateral; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, disparity fit, no σ weights, no trim, 1 frame", [=](O o) { o.noise_weights = false; o.trim_fraction = 0; }, {0}},
+      {"point-to-plane, disparity fit, σ weights, no trim, 1 frame", [=](O o) { o.trim_fraction = 0; }, {0}},
+      {"final (disparity fit, σ weights, trim 10 %), 1 frame", [](O) {}, {0}},
+      {"final, 4 frames", [](O) {}, four},
+      {"final, 8 frames", [](O) {}, eight},
+      {"final, 20 frames", [](O) {}, all},
+      {"final, 8 frames, without the floor", [](O o) { o.below_volume_m = 0; }, eight},
+      {"final, 8 frames, bilateral instead of disparity fit", [=](O o) { o.surface = bilateral; }, eight},
+      {"final, 8 frames, raw depth instead of disparity fit", [=](O o) { o.surface = raw; }, eight},
+      {"final, 8 frames, point-to-point", [](O o) { o.point_to_plane = false; }, eight},
+      {"final, 8 frames, no σ weights", [](O o) { o.noise_weights = false; }, eight},
+      {"final, 8 frames, no trim", [](O o) { o.trim_fraction = 0; }, eight},
+      {"final, 8 frames, down to full resolution (levels 2→0)", [](O o) { o.finest_level = 0; }, eight},
+      {"final, 1 frame, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, {0}},
+      {"final, 8 frames, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, eight},
   };
+
 
   std::printf("| variant | from perturbed: worst mm / deg | from truth: worst mm / deg | ms |\n| --- | --- | --- | --- |\n");
   for (size_t v = 0; v < variants.size(); ++v) {
@@ -77,6 +85,31 @@ int main(int argc, char** argv) {
     const Variant& variant = variants[v];
     RegistrationOptions options;
     variant.change(options);
+    // Quick experiments: ZF_SET="key=value,..." overrides a few options after the variant's.
+    if (const char* set = std::getenv("ZF_SET")) {
+      std::string text = set;
+      for (size_t pos = 0; pos < text.size();) {
+        size_t end = text.find(',', pos);
+        if (end == std::string::npos) end = text.size();
+        const std::string item = text.substr(pos, end - pos);
+        const size_t eq = item.find('=');
+        const std::string key = item.substr(0, eq);
+        const double value = std::stod(item.substr(eq + 1));
+        if (key == "fit_radius") options.fit_radius_px = static_cast<int>(value);
+        if (key == "gate") options.fit_gate_m = value;
+        if (key == "trim") options.trim_fraction = value;
+        if (key == "coarsest") options.coarsest_level = static_cast<int>(value);
+        if (key == "finest") options.finest_level = static_cast<int>(value);
+        if (key == "iters") options.iterations_per_level = static_cast<int>(value);
+        if (key == "end") options.end_distance_m = value;
+        if (key == "start") options.start_distance_m = value;
+        if (key == "view") options.max_view_angle_deg = value;
+        if (key == "normal_angle") options.max_normal_angle_deg = value;
+
+        if (key == "below") options.below_volume_m = value;
+        pos = end + 1;
+      }
+    }
     options.validate();
     std::vector<std::vector<Image<float>>> depth;
     for (int f : variant.frames) depth.push_back(registration_depth(perturbed, capture.load_frame(f), options));

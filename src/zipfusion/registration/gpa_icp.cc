@@ -54,6 +54,7 @@ struct Cloud {
   std::vector<Vec3> points;   // camera frame
   std::vector<Vec3> normals;  // camera frame, towards the camera
   std::vector<float> sigma;   // axial noise at the point's depth, metres
+  Intrinsics intrinsics;
   std::vector<Vec3> world_points, world_normals;
   CloudAdaptor adaptor;
   std::unique_ptr<KdTree> tree;
@@ -66,6 +67,7 @@ struct Cloud {
 
 std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k, int stride, const RegistrationOptions& o) {
   auto cloud = std::make_unique<Cloud>();
+  cloud->intrinsics = k;
   if (depth.empty()) return cloud;
   const int grid_width = (depth.width + stride - 1) / stride, grid_height = (depth.height + stride - 1) / stride;
   const int step = std::max(stride, o.normal_step_px);
@@ -102,12 +104,15 @@ void to_world(Cloud& cloud, const Rigid3d& world_from_depth) {
   }
 }
 
-int nearest(const Cloud& cloud, const Vec3& query_in_cam, float* distance_sq) {
+// Index of the cloud's point closest to the query (camera frame) within sqrt(max_d2), or −1.
+// The bound prunes the search: most queries far from the other surface end near the root.
+int nearest(const Cloud& cloud, const Vec3& query_in_cam, float max_d2, float* distance_sq) {
   std::uint32_t index = 0;
-  float d2 = 0;
-  if (cloud.tree->knnSearch(query_in_cam.data(), 1, &index, &d2) == 0) return -1;
-  *distance_sq = d2;
-  return static_cast<int>(index);
+  nanoflann::KNNResultSet<float, std::uint32_t> result(1);
+  result.init(&index, distance_sq);
+  *distance_sq = max_d2;
+  cloud.tree->findNeighbors(result, query_in_cam.data(), nanoflann::SearchParams());
+  return result.size() == 0 ? -1 : static_cast<int>(index);
 }
 
 // One correspondence's linearised residual: r + J·x, with x the 6N pose updates (ω, t) in the world
@@ -139,16 +144,22 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
   const float max_d2 = max_distance * max_distance;
   const float cos_normal = static_cast<float>(std::cos(o.max_normal_angle_deg * std::numbers::pi / 180));
   const int count = static_cast<int>(ca.points.size());
+  const auto width_b = static_cast<float>(cb.intrinsics.width - 1), height_b = static_cast<float>(cb.intrinsics.height - 1);
   std::vector<int> match(count, -1);
   parallel_for(
       0, count,
       [&](int i) {
+        // Only points camera b could see are searched (diagonal pairs share little).
+        const Vec3 in_b = b_from_world * ca.world_points[i];
+        if (in_b.z() <= 0.0f) return;
+        const Eigen::Vector2f px = project_pinhole(cb.intrinsics, in_b);
+        if (px.x() < 0.0f || px.y() < 0.0f || px.x() > width_b || px.y() > height_b) return;
         float d2 = 0;
-        const int j = nearest(cb, b_from_world * ca.world_points[i], &d2);
-        if (j < 0 || d2 > max_d2) return;
+        const int j = nearest(cb, in_b, max_d2, &d2);
+        if (j < 0) return;
         if (ca.world_normals[i].dot(cb.world_normals[j]) < cos_normal) return;
         float back_d2 = 0;
-        if (nearest(ca, a_from_world * cb.world_points[j], &back_d2) != i) return;
+        if (nearest(ca, a_from_world * cb.world_points[j], d2 * 1.0001f + 1e-12f, &back_d2) != i) return;
         match[i] = j;
       },
       o.num_threads);
@@ -298,16 +309,16 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   const int total_iterations = levels * options.iterations_per_level;
   const double shrink = total_iterations > 1 ? std::pow(options.end_distance_m / options.start_distance_m, 1.0 / (total_iterations - 1)) : 1.0;
 
-  Clouds clouds;
+  // Residuals before, at the input poses: measured on the finest level with the end distance.
+  Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
+  const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+  for (int c = 0; c < cameras; ++c) result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
+
   int schedule_step = 0;
   for (int level = options.coarsest_level; level >= options.finest_level; --level) {
-    clouds = make_clouds(rig, depth_m, level, options);
-    if (level == options.coarsest_level) {
-      // Residuals before, at the input poses: measured on the finest level with the end distance.
-      Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
-      const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
-      for (int c = 0; c < cameras; ++c) result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
-    }
+    Clouds coarse;
+    if (level != options.finest_level) coarse = make_clouds(rig, depth_m, level, options);
+    Clouds& clouds = level == options.finest_level ? finest : coarse;
     for (int it = 0; it < options.iterations_per_level; ++it, ++schedule_step) {
       const float distance = static_cast<float>(options.start_distance_m * std::pow(shrink, schedule_step));
       Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
@@ -340,7 +351,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       }
     }
   }
-  const Accumulated after = accumulate(clouds, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+  const Accumulated after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
   for (int c = 0; c < cameras; ++c) {
     result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
     result.correspondences_after.push_back(after.count[c]);

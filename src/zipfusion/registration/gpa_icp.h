@@ -139,24 +139,34 @@ inline bool disparity_fit_sample(int index, const float* depth, int width, int h
   if (u - radius < 0 || v - radius < 0 || u + radius >= width || v + radius >= height) return false;
   const float zc = depth[v * width + u];
   if (zc <= 0.0f) return false;
-  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
-  int used = 0;
-  const double scale = 1.0 / radius;
+  // Moments Σ x^i y^j (i + j ≤ 4) of the used pixels and Σ basis·w: the normal equations of the
+  // fit of w = c0 + c1 x + c2 y + c3 x² + c4 xy + c5 y², x and y in units of the radius.
+  float m00 = 0, m10 = 0, m01 = 0, m20 = 0, m11 = 0, m02 = 0, m30 = 0, m21 = 0, m12 = 0, m03 = 0, m40 = 0, m31 = 0, m22 = 0, m13 = 0, m04 = 0;
+  float b0 = 0, b1 = 0, b2 = 0, b3 = 0, b4 = 0, b5 = 0;
+  const float scale = 1.0f / static_cast<float>(radius);
   for (int dv = -radius; dv <= radius; ++dv) {
+    const float* row = depth + (v + dv) * width + u;
+    const float y = static_cast<float>(dv) * scale, y2 = y * y;
     for (int du = -radius; du <= radius; ++du) {
-      const float z = depth[(v + dv) * width + u + du];
+      const float z = row[du];
       if (z <= 0.0f || z > zc + gate_m || z < zc - gate_m) continue;
-      const double x = du * scale, y = dv * scale;
-      const Eigen::Matrix<double, 6, 1> basis(1, x, y, x * x, x * y, y * y);
-      ata.selfadjointView<Eigen::Lower>().rankUpdate(basis);
-      atb += basis / z;
-      ++used;
+      const float x = static_cast<float>(du) * scale, x2 = x * x, w = 1.0f / z;
+      m00 += 1; m10 += x; m01 += y; m20 += x2; m11 += x * y; m02 += y2;
+      m30 += x2 * x; m21 += x2 * y; m12 += x * y2; m03 += y2 * y;
+      m40 += x2 * x2; m31 += x2 * x * y; m22 += x2 * y2; m13 += x * y2 * y; m04 += y2 * y2;
+      b0 += w; b1 += w * x; b2 += w * y; b3 += w * x2; b4 += w * x * y; b5 += w * y2;
     }
   }
   const int side = 2 * radius + 1;
-  if (used * 10 < side * side * 6) return false;
-  ata = ata.selfadjointView<Eigen::Lower>();
+  if (m00 * 10 < static_cast<float>(side * side * 6)) return false;
+  Eigen::Matrix<double, 6, 6> ata;
+  ata << m00, m10, m01, m20, m11, m02,
+         m10, m20, m11, m30, m21, m12,
+         m01, m11, m02, m21, m12, m03,
+         m20, m30, m21, m40, m31, m22,
+         m11, m21, m12, m31, m22, m13,
+         m02, m12, m03, m22, m13, m04;
+  const Eigen::Matrix<double, 6, 1> atb(b0, b1, b2, b3, b4, b5);
   const Eigen::Matrix<double, 6, 1> c = ata.ldlt().solve(atb);
   const double w = c[0], wu = c[1] * scale, wv = c[2] * scale;  // inverse depth and its derivatives per pixel
   if (!(w > 0) || !std::isfinite(w)) return false;
