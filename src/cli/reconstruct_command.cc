@@ -9,6 +9,7 @@
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
+#include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
@@ -33,24 +34,6 @@ struct ReconstructArgs {
 };
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
-// Poses (and everything else) from another rig.json describing the same cameras.
-Rig rig_with_poses_from(const Rig& rig, const fs::path& path) {
-  Rig other = read_rig(path);
-  if (other.cameras.size() != rig.cameras.size()) {
-    throw InvalidInput(path.string() + ": cameras: has " + std::to_string(other.cameras.size()) + " cameras, the capture has " +
-                       std::to_string(rig.cameras.size()));
-  }
-  Rig result = rig;
-  for (size_t c = 0; c < rig.cameras.size(); ++c) {
-    if (other.cameras[c].name != rig.cameras[c].name) {
-      throw InvalidInput(path.string() + ": cameras[" + std::to_string(c) + "].name: \"" + other.cameras[c].name + "\" is not the capture's \"" +
-                         rig.cameras[c].name + "\"");
-    }
-    result.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
-  }
-  return result;
-}
 
 double median_of(std::vector<double> values) {
   if (values.empty()) return 0;

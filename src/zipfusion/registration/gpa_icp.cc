@@ -37,6 +37,10 @@ namespace {
 using Vec3 = Eigen::Vector3f;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
+// Metres: a rotation's step is measured by how far it moves a point this far away (about the
+// distance from a camera to the subject).
+constexpr double kLeverArmM = 2.0;
+
 // nanoflann's view of a cloud's points (camera frame).
 struct CloudAdaptor {
   const std::vector<Vec3>* points = nullptr;
@@ -65,7 +69,8 @@ struct Cloud {
   bool empty() const { return points.empty(); }
 };
 
-std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k, int stride, const RegistrationOptions& o) {
+// `fit_radius`: the disparity fit's half-width in pixels.
+std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k, int stride, int fit_radius, const RegistrationOptions& o) {
   auto cloud = std::make_unique<Cloud>();
   cloud->intrinsics = k;
   if (depth.empty()) return cloud;
@@ -80,7 +85,7 @@ std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k
     const float z = depth(std::min(u, depth.width - 1), std::min(v, depth.height - 1));
     const float max_jump = 2.0f * step * z / static_cast<float>(k.fx) * std::tan(std::acos(cos_view)) + 3 * kinect_axial_sigma(z);
     const bool ok = o.surface == RegistrationSurface::kDisparityFit
-                        ? disparity_fit_sample(i, depth.data.data(), depth.width, depth.height, stride, std::max(stride, o.fit_radius_px),
+                        ? disparity_fit_sample(i, depth.data.data(), depth.width, depth.height, stride, fit_radius,
                                                static_cast<float>(o.fit_gate_m), k, cos_view, &p, &n)
                         : surface_sample(i, depth.data.data(), depth.width, depth.height, stride, step, k, max_jump, cos_view, &p, &n);
     if (!ok) continue;
@@ -214,6 +219,11 @@ void trim(std::vector<Residual>& residuals, double fraction) {
 using Clouds = std::vector<std::vector<std::unique_ptr<Cloud>>>;  // [frame][camera]
 
 Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, int level, const RegistrationOptions& o) {
+  // Coarse levels only have to converge: their fit spans the whole stride, so no pixel is ignored
+  // and normals are smooth. The finest level decides the accuracy, where a smaller window bends
+  // curved surfaces less (docs/design.md, "Registration").
+  const int stride = 1 << level;
+  const int fit_radius = level == o.finest_level ? o.fit_radius_px : std::max(o.fit_radius_px, stride);
   const int cameras = static_cast<int>(rig.cameras.size());
   const int frames = static_cast<int>(depth_m.size());
   Clouds clouds(frames);
@@ -222,7 +232,7 @@ Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>&
       0, frames * cameras,
       [&](int fc) {
         const int f = fc / cameras, c = fc % cameras;
-        clouds[f][c] = make_cloud(depth_m[f][c], rig.cameras[c].depth_intrinsics, 1 << level, o);
+        clouds[f][c] = make_cloud(depth_m[f][c], rig.cameras[c].depth_intrinsics, 1 << level, fit_radius, o);
       },
       o.num_threads);
   return clouds;
@@ -335,7 +345,11 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       ++result.iterations;
       double largest = 0;
       for (int c = 1; c < cameras; ++c) {
-        const Vector6d step = x.segment<6>(6 * (c - 1));
+        Vector6d step = x.segment<6>(6 * (c - 1));
+        // A step longer than the correspondence distance trusts the linearisation beyond the
+        // correspondences that made it (a nearly degenerate overlap); shorten it.
+        const double length = std::max(step.tail<3>().norm(), step.head<3>().norm() * kLeverArmM);
+        if (length > distance) step *= distance / length;
         const Eigen::Vector3d omega = step.head<3>();
         largest = std::max({largest, omega.norm(), step.tail<3>().norm()});
         Rigid3d update = Rigid3d::Identity();

@@ -36,19 +36,19 @@ enum class RegistrationSurface {
 };
 
 struct RegistrationOptions {
-  int coarsest_level = 2;          // L: the first level uses depth subsampled by 2^L (paper: coarse to fine)
-  int finest_level = 1;            // the last level; 0 = full resolution
+  int coarsest_level = 3;          // L: the first level uses depth subsampled by 2^L (paper: coarse to fine); 80×60 converges from 2°/5 cm
+  int finest_level = 1;            // the last level; 0 = full resolution (no more accurate, 4× slower)
   int iterations_per_level = 4;    // paper: at most 4
   double start_distance_m = 0.15;  // metres: correspondence distance at the first iteration (covers ~2°/5 cm)
   double end_distance_m = 0.015;   // metres: at the last iteration (geometric shrink in between)
   double max_normal_angle_deg = 45;  // degrees: corresponding points' normals must agree this well
   double max_view_angle_deg = 75;    // degrees: points seen more obliquely (noisy, silhouettes) are not used
-  int normal_step_px = 4;          // pixels (full resolution): normals from neighbours this far apart, at least the level's stride
+  int normal_step_px = 4;          // pixels (full resolution), kBilateral and kRaw: normals from neighbours this far apart, at least the stride
   double trim_fraction = 0.1;      // share of each pair's correspondences with the largest |residual|/σ dropped
   bool point_to_plane = true;      // false: point-to-point (the plain GPA of the paper)
   bool noise_weights = true;       // weight by 1/σ² from the Kinect v1 axial noise σ(z) (Nguyen et al. 2012)
   RegistrationSurface surface = RegistrationSurface::kDisparityFit;
-  int fit_radius_px = 4;           // pixels (full resolution): window half-width of the disparity fit, at least the level's stride
+  int fit_radius_px = 3;           // pixels (full resolution): half-width of the disparity fit at the finest level (coarser: at least the stride)
   double fit_gate_m = 0.05;        // metres: window pixels farther in depth from the centre belong to another surface
   BilateralOptions filter;         // kBilateral only: paper's values
   ForegroundOptions foreground;

@@ -1,0 +1,107 @@
+// zipfusion register: refine a capture's camera poses by GPA-ICP and write the refined rig.json.
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "cli/commands.h"
+#include "cli/frame_range.h"
+#include "cli/rig_poses.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/capture.h"
+#include "zipfusion/registration/gpa_icp.h"
+
+namespace zipfusion::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RegisterArgs {
+  std::string capture;
+  std::string out;
+  std::string frames;
+  std::string rig;
+  int max_frames = 8;
+  RegistrationOptions options;
+};
+
+// Up to `count` frames spread evenly over [begin, end): the subject moves between them, so each adds
+// constraints that the others lack.
+std::vector<int> spread_frames(const FrameRange& range, int count) {
+  const int available = range.end - range.begin;
+  const int used = std::min(count, available);
+  std::vector<int> frames;
+  for (int i = 0; i < used; ++i) frames.push_back(range.begin + static_cast<int>(static_cast<long long>(i) * available / used));
+  return frames;
+}
+
+void run_register(RegisterArgs& args) {
+  if (args.max_frames < 1) throw InvalidInput("--max-frames: must be at least 1, got " + std::to_string(args.max_frames));
+  args.options.validate();
+  const Capture capture = Capture::open(args.capture);
+  const Rig start = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
+  const std::vector<int> frames = spread_frames(range, args.max_frames);
+
+  std::vector<std::vector<Image<float>>> depth;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    depth.push_back(registration_depth(start, capture.load_frame(frames[i]), args.options));
+    show_progress("register: loading", static_cast<int>(i) + 1, static_cast<int>(frames.size()));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const RegistrationResult result = register_rig(start, depth, args.options);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+  Rig refined = start;
+  for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
+  write_rig(args.out, refined);
+
+  std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),
+              frames.back(), ms, result.iterations, result.converged ? ", converged" : "");
+  std::printf("%-10s %12s %12s %14s %14s %10s\n", "camera", "change deg", "change mm", "residual mm", "after mm", "matches");
+  for (size_t c = 0; c < start.cameras.size(); ++c) {
+    const Rigid3d change = start.cameras[c].world_from_depth.inverse() * result.world_from_depth[c];
+    const double moved_mm = (result.world_from_depth[c].translation() - start.cameras[c].world_from_depth.translation()).norm() * 1000;
+    std::printf("%-10s %12.3f %12.1f %14.2f %14.2f %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
+                result.rmse_before_m[c] * 1000, result.rmse_after_m[c] * 1000, result.correspondences_after[c],
+                c > 0 && result.correspondences_after[c] == 0 ? "  (overlaps no camera: pose kept)" : "");
+  }
+  if (const auto& truth = capture.ground_truth_rig()) {
+    std::vector<Rigid3d> true_poses, start_poses;
+    for (const CameraModel& cam : truth->cameras) true_poses.push_back(cam.world_from_depth);
+    for (const CameraModel& cam : start.cameras) start_poses.push_back(cam.world_from_depth);
+    const auto before = relative_pose_errors(start_poses, true_poses), after = relative_pose_errors(result.world_from_depth, true_poses);
+    std::printf("against ground_truth/rig.json (pose relative to %s):\n", start.cameras[0].name.c_str());
+    for (size_t c = 1; c < before.size(); ++c) {
+      std::printf("%-10s before %6.1f mm %6.3f deg   after %6.1f mm %6.3f deg\n", start.cameras[c].name.c_str(), before[c].translation_m * 1000,
+                  before[c].rotation_deg, after[c].translation_m * 1000, after[c].rotation_deg);
+    }
+  }
+  std::printf("wrote %s\n", args.out.c_str());
+}
+
+}  // namespace
+
+void add_register_command(CLI::App& app) {
+  auto args = std::make_shared<RegisterArgs>();
+  RegistrationOptions& o = args->options;
+  CLI::App* cmd = app.add_subcommand("register", "Refine all camera poses at once (GPA-ICP) and write the refined rig.json");
+  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  cmd->add_option("--out", args->out, "Refined rig.json to write")->required();
+  cmd->add_option("--frames", args->frames, "Frames A:B to draw from (A included, B excluded; default all)");
+  cmd->add_option("--max-frames", args->max_frames, "Frames used, spread evenly over --frames")->capture_default_str();
+  cmd->add_option("--rig", args->rig, "Start from the poses of this rig.json instead of the capture's");
+  cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth subsampled by 2^L")->capture_default_str();
+  cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution)")->capture_default_str();
+  cmd->add_option("--iterations", o.iterations_per_level, "Iterations per level")->capture_default_str();
+  cmd->add_option("--start-distance", o.start_distance_m, "Correspondence distance at the first iteration, metres")->capture_default_str();
+  cmd->add_option("--end-distance", o.end_distance_m, "Correspondence distance at the last iteration, metres")->capture_default_str();
+  cmd->add_option("--trim", o.trim_fraction, "Share of each pair's worst correspondences dropped")->capture_default_str();
+  cmd->add_option("--below-volume", o.below_volume_m, "Depth this far below the capture volume (the floor) is used too, metres")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->callback([args] { run_register(*args); });
+}
+
+}  // namespace zipfusion::cli
