@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
       {"point-to-plane, bilateral, no σ weights, no trim, 1 frame", [=](O o) { o.surface = bilateral; o.noise_weights = false; o.trim_fraction = 0; }, {0}},
       {"point-to-plane, disparity fit, no σ weights, no trim, 1 frame", [=](O o) { o.noise_weights = false; o.trim_fraction = 0; }, {0}},
       {"point-to-plane, disparity fit, σ weights, no trim, 1 frame", [=](O o) { o.trim_fraction = 0; }, {0}},
-      {"final (disparity fit, σ weights, trim 10 %), 1 frame", [](O) {}, {0}},
+      {"final (disparity fit, σ weights, trim 3 %), 1 frame", [](O) {}, {0}},
       {"final, 4 frames", [](O) {}, four},
       {"final, 8 frames", [](O) {}, eight},
       {"final, 20 frames", [](O) {}, all},
@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
       {"final, 8 frames, point-to-point", [](O o) { o.point_to_plane = false; }, eight},
       {"final, 8 frames, no σ weights", [](O o) { o.noise_weights = false; }, eight},
       {"final, 8 frames, no trim", [](O o) { o.trim_fraction = 0; }, eight},
-      {"final, 8 frames, down to full resolution (levels 2→0)", [](O o) { o.finest_level = 0; }, eight},
+      {"final, 8 frames, down to full resolution (levels 3→0)", [](O o) { o.finest_level = 0; }, eight},
       {"final, 1 frame, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, {0}},
       {"final, 8 frames, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, eight},
   };

@@ -29,6 +29,11 @@ void ReconstructOptions::validate() const {
 FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
     : rig_(rig), options_(validated(options)), kernel_(options.filter), cameras_(rig.cameras.size()) {}
 
+void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth) {
+  assert(world_from_depth.size() == rig_.cameras.size());
+  for (size_t c = 0; c < rig_.cameras.size(); ++c) rig_.cameras[c].world_from_depth = world_from_depth[c];
+}
+
 FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   const Clock::time_point start = Clock::now();
   FrameResult result;

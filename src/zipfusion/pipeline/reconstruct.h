@@ -64,6 +64,10 @@ class FrameReconstructor {
   //! Reconstructs one frame set; a camera without depth in it is left out.
   FrameResult reconstruct(const FrameSet& frames);
 
+  //! Replaces the camera poses (refined by registration) from the next frame on. Precondition: one
+  //! pose per camera; not during reconstruct().
+  void set_poses(const std::vector<Rigid3d>& world_from_depth);
+
  private:
   struct CameraState {
     Image<float> foreground;

@@ -44,7 +44,7 @@ struct RegistrationOptions {
   double max_normal_angle_deg = 45;  // degrees: corresponding points' normals must agree this well
   double max_view_angle_deg = 75;    // degrees: points seen more obliquely (noisy, silhouettes) are not used
   int normal_step_px = 4;          // pixels (full resolution), kBilateral and kRaw: normals from neighbours this far apart, at least the stride
-  double trim_fraction = 0.1;      // share of each pair's correspondences with the largest |residual|/σ dropped
+  double trim_fraction = 0.03;     // share of each pair's correspondences with the largest |residual|/σ dropped
   bool point_to_plane = true;      // false: point-to-point (the plain GPA of the paper)
   bool noise_weights = true;       // weight by 1/σ² from the Kinect v1 axial noise σ(z) (Nguyen et al. 2012)
   RegistrationSurface surface = RegistrationSurface::kDisparityFit;

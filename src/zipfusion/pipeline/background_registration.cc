@@ -1,0 +1,97 @@
+#include "zipfusion/pipeline/background_registration.h"
+
+#include "zipfusion/core/error.h"
+
+namespace zipfusion {
+
+void BackgroundRegistrationOptions::validate() const {
+  if (every_frames < 1) throw InvalidInput("register-every: must be at least 1 frame");
+  if (window_frames < 1 || window_frames > 64) throw InvalidInput("register-window: must be in [1, 64] frames");
+  registration.validate();
+}
+
+BackgroundRegistration::BackgroundRegistration(const Rig& rig, const BackgroundRegistrationOptions& options) : rig_(rig), options_(options) {
+  options_.validate();
+  auto initial = std::make_shared<PublishedPoses>();
+  for (const CameraModel& cam : rig.cameras) initial->world_from_depth.push_back(cam.world_from_depth);
+  published_ = std::move(initial);
+  worker_ = std::jthread([this] { run(); });
+}
+
+BackgroundRegistration::~BackgroundRegistration() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+}
+
+void BackgroundRegistration::offer(const FrameSet& frames) {
+  const bool due = offered_++ % options_.every_frames == 0;
+  if (!due) return;
+  std::unique_lock lock(mutex_, std::try_to_lock);
+  if (!lock.owns_lock() || busy_ || pending_) return;  // the worker is still at it: skip, never wait
+  window_.push_back(frames);
+  if (static_cast<int>(window_.size()) > options_.window_frames) window_.erase(window_.begin());
+  pending_ = true;
+  lock.unlock();
+  wake_.notify_one();
+}
+
+std::shared_ptr<const PublishedPoses> BackgroundRegistration::latest_poses() const {
+  std::lock_guard lock(mutex_);
+  return published_;
+}
+
+void BackgroundRegistration::wait_idle() {
+  std::unique_lock lock(mutex_);
+  idle_.wait(lock, [this] { return !pending_ && !busy_; });
+}
+
+void BackgroundRegistration::run() {
+  for (;;) {
+    std::vector<FrameSet> window;
+    std::shared_ptr<const PublishedPoses> start;
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [this] { return stop_ || pending_; });
+      if (stop_) return;
+      window = window_;
+      start = published_;
+      pending_ = false;
+      busy_ = true;
+    }
+    Rig rig = rig_;
+    for (size_t c = 0; c < rig.cameras.size(); ++c) rig.cameras[c].world_from_depth = start->world_from_depth[c];
+    std::shared_ptr<PublishedPoses> next;
+    try {
+      std::vector<std::vector<Image<float>>> depth;
+      for (const FrameSet& set : window) depth.push_back(registration_depth(rig, set, options_.registration));
+      RegistrationResult result = register_rig(rig, depth, options_.registration);
+      // Published only when the surfaces agree at least as well as before: a window where the
+      // cameras barely overlap must not move a good calibration.
+      double before = 0, after = 0;
+      for (size_t c = 0; c < result.rmse_after_m.size(); ++c) {
+        before += result.rmse_before_m[c];
+        after += result.rmse_after_m[c];
+      }
+      if (after <= before) {
+        next = std::make_shared<PublishedPoses>();
+        next->world_from_depth = result.world_from_depth;
+        next->result = std::move(result);
+        next->version = start->version + 1;
+        next->frame = window.back().index;
+      }
+    } catch (const std::exception&) {
+      // Keep the poses we have; the pipeline goes on with them.
+    }
+    {
+      std::lock_guard lock(mutex_);
+      if (next) published_ = std::move(next);
+      busy_ = false;
+    }
+    idle_.notify_all();
+  }
+}
+
+}  // namespace zipfusion
