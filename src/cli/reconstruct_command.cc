@@ -13,6 +13,7 @@
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
+#include "zipfusion/pipeline/background_registration.h"
 #include "zipfusion/pipeline/reconstruct.h"
 
 namespace zipfusion::cli {
@@ -29,8 +30,11 @@ struct ReconstructArgs {
   std::string filter = "bilateral";
   std::string format = "ply";
   std::string rig;
+  std::string register_mode = "off";
   bool no_volume_crop = false;
   ReconstructOptions options;
+  BackgroundRegistrationOptions background;
+  int once_frames = 8;
 };
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
@@ -47,6 +51,7 @@ void run_reconstruct(ReconstructArgs& args) {
   options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
+  args.background.validate();
   const Capture capture = Capture::open(args.capture);
   const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
@@ -56,7 +61,25 @@ void run_reconstruct(ReconstructArgs& args) {
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
 
-  FrameReconstructor reconstructor(rig, options);
+  // --register once: refine on frames spread over the range, then keep those poses.
+  Rig start_rig = rig;
+  nlohmann::ordered_json pose_updates = nlohmann::json::array();
+  if (args.register_mode == "once") {
+    args.background.registration.validate();
+    std::vector<std::vector<Image<float>>> depth;
+    const int count = std::min(args.once_frames, range.end - range.begin);
+    for (int i = 0; i < count; ++i) {
+      depth.push_back(registration_depth(rig, capture.load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
+    }
+    const RegistrationResult refined = register_rig(rig, depth, args.background.registration);
+    for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];
+    pose_updates.push_back({{"frame", range.begin}, {"version", 1}});
+  }
+  std::unique_ptr<BackgroundRegistration> background;
+  if (args.register_mode == "background") background = std::make_unique<BackgroundRegistration>(rig, args.background);
+  int pose_version = 0;
+
+  FrameReconstructor reconstructor(start_rig, options);
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
   const std::string extension = "." + args.format;
@@ -64,6 +87,16 @@ void run_reconstruct(ReconstructArgs& args) {
     const Clock::time_point decode_start = Clock::now();
     const FrameSet set = capture.load_frame(frame);
     const double decode_ms = ms_since(decode_start);
+    if (background) {
+      // Poses refined since the last frame take effect now; the frame never waits for the worker.
+      const auto poses = background->latest_poses();
+      if (poses->version != pose_version) {
+        reconstructor.set_poses(poses->world_from_depth);
+        pose_version = poses->version;
+        pose_updates.push_back({{"frame", frame}, {"version", pose_version}, {"refined_on_frame", poses->frame}});
+      }
+      background->offer(set);
+    }
     const FrameResult result = reconstructor.reconstruct(set);
     const Clock::time_point write_start = Clock::now();
     write_mesh(out_dir / frame_file_name(frame, extension), result.mesh);
@@ -102,6 +135,8 @@ void run_reconstruct(ReconstructArgs& args) {
                       {"min_overlap_share", options.zipper.min_overlap_share},
                       {"hole_closing_px", options.zipper.hole_closing_px},
                       {"threads", options.num_threads}};
+  stats["register"] = args.register_mode;
+  stats["pose_updates"] = pose_updates;
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
@@ -126,6 +161,13 @@ void add_reconstruct_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
   cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--register", args->register_mode,
+                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off")
+      ->check(CLI::IsMember({"background", "once", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--register-every", args->background.every_frames, "background: frames between two refinements")->capture_default_str();
+  cmd->add_option("--register-window", args->background.window_frames, "background: newest offered frame sets refined together")
+      ->capture_default_str();
   cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
   cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
   cmd->add_flag("--no-volume-crop", args->no_volume_crop, "Keep depth outside the rig's capture volume");

@@ -9,10 +9,11 @@
 //! (symmetric point-to-plane: the two points' mean normal) and solved jointly by one Gauss-Newton
 //! step per iteration, so errors are spread over the ring rather than chained.
 //!
-//! Against the Kinect's noise (docs/design.md, "Registration"): clouds come from bilateral-filtered
-//! depth, normals from the filtered surface at a few pixels' scale, each correspondence is weighted
-//! by the sensor's axial noise σ(z) along the normal, the worst residuals of each pair are trimmed,
-//! and several frames (where the subject has moved) add their correspondences to the same solve.
+//! Against the Kinect's noise (docs/design.md, "Registration"): each sample's point and normal come
+//! from a quadratic fit of inverse depth (disparity) in a small window, each correspondence is
+//! weighted by the sensor's axial noise σ(z) along the normal, the worst residuals of each pair
+//! are trimmed, the floor just below the capture volume joins in (static, it fixes the tilt), and
+//! several frames (where the subject has moved) add their correspondences to the same solve.
 //! Coarse to fine: depth subsampled by 2^L, at most `iterations_per_level` per level (paper: 4).
 //!
 //! Thread safety: the functions are pure; parallel inside (`num_threads`).

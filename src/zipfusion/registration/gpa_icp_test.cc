@@ -151,7 +151,7 @@ TEST(RegisterRig, SixNoiseFreeCamerasConvergeFromTwoDegreesFiveCentimetres) {
   EXPECT_LT(after.deg, 0.1);
 }
 
-// The target with the Kinect v1 noise model. Measured 3.7 mm / 0.06° (docs/design.md,
+// The target with the Kinect v1 noise model. Measured 3.3 mm / 0.05° (docs/design.md,
 // "Registration"): the rotation is within target, the translation is not yet.
 TEST(RegisterRig, DISABLED_SixKinectCamerasConvergeFromTwoDegreesFiveCentimetres) {
   const RegistrationOptions options;
