@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
         if (key == "normal_angle") options.max_normal_angle_deg = value;
 
         if (key == "below") options.below_volume_m = value;
+        if (key == "maxdepth") options.foreground.max_depth_m = value;
         pos = end + 1;
       }
     }

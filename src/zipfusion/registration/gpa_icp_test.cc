@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 
@@ -34,8 +35,15 @@ WorstError worst_error(const std::vector<Rigid3d>& poses, const Rig& truth) {
 struct SyntheticRing {
   Rig truth;
   Rig start;
-  std::vector<std::vector<Image<float>>> depth;
+  std::vector<FrameSet> frames;
+  std::vector<std::vector<Image<float>>> depth;  // registration_depth of `frames` with make_ring's options
 };
+
+std::vector<std::vector<Image<float>>> depth_of(const SyntheticRing& ring, const RegistrationOptions& options) {
+  std::vector<std::vector<Image<float>>> depth;
+  for (const FrameSet& set : ring.frames) depth.push_back(registration_depth(ring.start, set, options));
+  return depth;
+}
 
 // `keep` > 0: only the first `keep` cameras of the ring.
 SyntheticRing make_ring(int cameras, int frames, double perturb_deg, double perturb_m, bool noise, const RegistrationOptions& options,
@@ -61,8 +69,9 @@ SyntheticRing make_ring(int cameras, int frames, double perturb_deg, double pert
       set.cameras[c].depth = render_view(subject, ring.truth, c, frame, synth).depth;
       set.cameras[c].has_depth = true;
     }
-    ring.depth.push_back(registration_depth(ring.start, set, options));
+    ring.frames.push_back(std::move(set));
   }
+  ring.depth = depth_of(ring, options);
   return ring;
 }
 
@@ -151,23 +160,61 @@ TEST(RegisterRig, SixNoiseFreeCamerasConvergeFromTwoDegreesFiveCentimetres) {
   EXPECT_LT(after.deg, 0.1);
 }
 
-// The target with the Kinect v1 noise model. Measured 3.3 mm / 0.05° (docs/design.md,
-// "Registration"): the rotation is within target, the translation is not yet.
-TEST(RegisterRig, DISABLED_SixKinectCamerasConvergeFromTwoDegreesFiveCentimetres) {
+// Pairwise ICP chained around the ring (camera k against camera k−1, already placed), the way
+// errors accumulate without a global solve.
+std::vector<Rigid3d> chained_pairwise(const SyntheticRing& ring, const std::vector<std::vector<Image<float>>>& depth,
+                                      const RegistrationOptions& options) {
+  std::vector<Rigid3d> poses{ring.start.cameras[0].world_from_depth};
+  for (size_t c = 1; c < ring.start.cameras.size(); ++c) {
+    Rig pair = ring.start;
+    pair.cameras = {ring.start.cameras[c - 1], ring.start.cameras[c]};
+    pair.cameras[0].world_from_depth = poses.back();
+    std::vector<std::vector<Image<float>>> pair_depth;
+    for (const auto& frame : depth) pair_depth.push_back({frame[c - 1], frame[c]});
+    poses.push_back(register_rig(pair, pair_depth, options).world_from_depth[1]);
+  }
+  return poses;
+}
+
+// Kinect noise, 6 cameras perturbed by 2° / 5 cm, 8 frames. With the floor (the default) the worst
+// camera ends 3.0 mm / 0.07° from the truth; without it 1.9 mm / 0.04° here (2.2 mm / 0.05° on
+// another seed, docs/design.md "Registration"), and there the global solve beats pairwise ICP
+// chained around the ring. The 2 mm is met only without the floor, and not on every seed:
+// that assertion is the disabled test below.
+class SixKinectRing : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { ring_ = new SyntheticRing(make_ring(6, 8, 2.0, 0.05, true, RegistrationOptions{})); }
+  static void TearDownTestSuite() {
+    delete ring_;
+    ring_ = nullptr;
+  }
+  static SyntheticRing* ring_;
+};
+SyntheticRing* SixKinectRing::ring_ = nullptr;
+
+TEST_F(SixKinectRing, ConvergesFromTwoDegreesFiveCentimetres) {
   const RegistrationOptions options;
-  const SyntheticRing ring = make_ring(6, 8, 2.0, 0.05, true, options);
-  const RegistrationResult result = register_rig(ring.start, ring.depth, options);
-  const WorstError after = worst_error(result.world_from_depth, ring.truth);
-  EXPECT_LT(after.mm, 2.0);
+  const WorstError after = worst_error(register_rig(ring_->start, ring_->depth, options).world_from_depth, ring_->truth);
+  EXPECT_LT(after.mm, 6.0);
   EXPECT_LT(after.deg, 0.1);
 }
 
-TEST(RegisterRig, SixKinectCamerasGetCloseFromTwoDegreesFiveCentimetres) {
+TEST_F(SixKinectRing, GlobalSolveBeatsChainedPairsWithoutTheFloor) {
+  const RegistrationOptions options{.below_volume_m = 0};
+  const auto depth = depth_of(*ring_, options);
+  const WorstError gpa = worst_error(register_rig(ring_->start, depth, options).world_from_depth, ring_->truth);
+  const WorstError chained = worst_error(chained_pairwise(*ring_, depth, options), ring_->truth);
+  std::printf("GPA %.1f mm / %.3f deg, chained pairs %.1f mm / %.3f deg\n", gpa.mm, gpa.deg, chained.mm, chained.deg);
+  EXPECT_LT(gpa.mm, 3.0);
+  EXPECT_LT(gpa.deg, 0.1);
+  EXPECT_LT(gpa.mm, chained.mm);
+  EXPECT_LT(gpa.deg, chained.deg);
+}
+
+TEST_F(SixKinectRing, DISABLED_WithinTwoMillimetresAndATenthOfADegree) {
   const RegistrationOptions options;
-  const SyntheticRing ring = make_ring(6, 8, 2.0, 0.05, true, options);
-  const RegistrationResult result = register_rig(ring.start, ring.depth, options);
-  const WorstError after = worst_error(result.world_from_depth, ring.truth);
-  EXPECT_LT(after.mm, 6.0);
+  const WorstError after = worst_error(register_rig(ring_->start, ring_->depth, options).world_from_depth, ring_->truth);
+  EXPECT_LT(after.mm, 2.0);
   EXPECT_LT(after.deg, 0.1);
 }
 
