@@ -59,7 +59,7 @@ void run_register(RegisterArgs& args) {
 
   std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),
               frames.back(), ms, result.iterations, result.converged ? ", converged" : "");
-  std::printf("%-10s %12s %12s %14s %14s %10s\n", "camera", "change deg", "change mm", "residual mm", "after mm", "matches");
+  std::printf("%-10s %12s %12s %14s %14s %10s\n", "camera", "change deg", "change mm", "rms before mm", "rms after mm", "matches");
   for (size_t c = 0; c < start.cameras.size(); ++c) {
     const Rigid3d change = start.cameras[c].world_from_depth.inverse() * result.world_from_depth[c];
     const double moved_mm = (result.world_from_depth[c].translation() - start.cameras[c].world_from_depth.translation()).norm() * 1000;

@@ -82,8 +82,8 @@ std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k
   if (depth.empty()) return cloud;
   const int grid_width = (depth.width + stride - 1) / stride, grid_height = (depth.height + stride - 1) / stride;
   const int step = std::max(stride, o.normal_step_px);
-  // A neighbour `step` pixels away on a surface seen at up to max_view_angle differs in depth by
-  // at most step·z/f·tan(angle); twice that allows for noise.
+  // kBilateral, kRaw: a neighbour `step` pixels away on a surface seen at up to max_view_angle
+  // differs in depth by at most step·z/f·tan(angle); twice that plus 3σ allows for noise.
   const float cos_view = static_cast<float>(std::cos(o.max_view_angle_deg * std::numbers::pi / 180));
   for (int i = 0; i < grid_width * grid_height; ++i) {
     Vec3 p, n;
@@ -134,10 +134,6 @@ struct Residual {
   Vec3 r;
   float scaled = 0;  // |r| / σ, for trimming
   float weight = 0;
-};
-
-struct PairMatches {
-  std::vector<Residual> residuals;
 };
 
 struct Poses {
