@@ -33,7 +33,7 @@ TEST_F(RegisterCli, WritesARefinedRigAndReportsEveryCamera) {
   const std::string out = (dir_ / "refined.json").string();
   const CommandResult r = run("register " + capture + " --out " + out + " --max-frames 2");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const std::string name : {"cam0", "cam1", "cam2", "cam3", "residual", "against ground_truth"}) {
+  for (const std::string name : {"cam0", "cam1", "cam2", "cam3", "rms after", "against ground_truth"}) {
     EXPECT_NE(r.out.find(name), std::string::npos) << name << "\n" << r.out;
   }
   const Capture cap = Capture::open(capture);
