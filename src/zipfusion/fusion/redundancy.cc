@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 
 namespace zipfusion {
@@ -124,10 +125,12 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
   // in the first rings, so rings are searched from the centre outwards.
   const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
   const int last_u = mesh.width - 2, last_v = mesh.height - 2;
-  // Far from any triangle of the mesh (in its image): nothing to search.
-  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v &&
-      (*view.exterior)[cv * mesh.width + cu] > static_cast<float>(window) * 1.5f + 1.0f) {
-    return false;
+  // No cell of ring r is farther than r·√2 from the centre cell, so the rings nearer than the
+  // nearest cell with a triangle (exterior distance, a chamfer estimate within 5 %) are empty.
+  int first_ring = 0;
+  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v) {
+    first_ring = static_cast<int>(std::ceil(0.95f * (*view.exterior)[cv * mesh.width + cu] / std::numbers::sqrt2_v<float>)) - 1;
+    if (first_ring > window) return false;
   }
   const float distance2 = distance * distance;
   auto cell_has_near = [&](int u, int v) {
@@ -138,8 +141,8 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
     return ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) ||
            ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2);
   };
-  if (cell_has_near(cu, cv)) return true;
-  for (int ring = 1; ring <= window; ++ring) {
+  if (first_ring <= 0 && cell_has_near(cu, cv)) return true;
+  for (int ring = std::max(1, first_ring); ring <= window; ++ring) {
     if (cu + ring < 0 || cu - ring > last_u || cv + ring < 0 || cv - ring > last_v) return false;
     for (int d = -ring; d <= ring; ++d) {
       if (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring)) return true;
