@@ -19,13 +19,14 @@ void enqueue(FrbrScratch& s, int id) {
 
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
-int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, FrbrScratch& s) {
+int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   s.removals.clear();
   for (int id : s.worklist) {
     const int cell = cell_of(id);
     const TriangleBit bit = bit_of(id);
     if (!(mesh.triangles[cell] & bit)) continue;
+    if (!mask.covers(cell, mesh.width, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
     const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
     if (owner_is_other(a, cell, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
@@ -88,6 +89,25 @@ bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tole
   }
   return false;
 }
+
+namespace {
+
+// Does b have depth within `depth_tolerance` of p's at a pixel next to p's projection? Unlike
+// may_see_point, a pixel without depth does not count.
+bool may_see_surface(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
+  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+  if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
+  const int base = v * b.mesh->width + u;
+  for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
+    if (std::abs(b.mesh->depth[index] - depth) < depth_tolerance) return true;
+  }
+  return false;
+}
+
+}  // namespace
 
 bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
@@ -178,14 +198,15 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance) {
 }
 
 FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,
-                                       FrbrScratch& scratch_a, FrbrScratch& scratch_b) {
+                                       const OverlapMask& mask_a, const OverlapMask& mask_b, FrbrScratch& scratch_a,
+                                       FrbrScratch& scratch_b) {
   FrbrResult result;
   start_worklist(*a.mesh, whole_first_sweep, scratch_a);
   start_worklist(*b.mesh, whole_first_sweep, scratch_b);
   bool boundary_only = !whole_first_sweep;
   while (true) {
-    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, scratch_a);
-    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, scratch_b);
+    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, mask_a, scratch_a);
+    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, mask_b, scratch_b);
     boundary_only = true;
     ++result.iterations;
     result.removed_a += removed_a;
@@ -193,6 +214,19 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
     if (removed_a == 0 && removed_b == 0) break;
   }
   return result;
+}
+
+void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tolerance, OverlapMask& mask) {
+  const DepthMesh& mesh = *a.mesh;
+  mask.width = mesh.width;
+  mask.level = a.level;
+  mask.cells.assign(mesh.depth.size(), 0);
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    if (mesh.depth[cell] > 0 && may_see_surface(b, mesh.points[cell], depth_tolerance)) mask.cells[cell] = 255;
+  }
+  cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
+  cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
 }
 
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse) {

@@ -81,13 +81,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
     compute_coverage_distances(*cameras[c].mesh, options.hole_closing_px, s.interior[0], s.exterior[0]);
     views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.interior[0],
-                   &s.exterior[0], c};
+                   &s.exterior[0], c, 0};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
       compute_coverage_distances(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level], s.exterior[level]);
       views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world,
-                         &s.interior[level], &s.exterior[level], c};
+                         &s.interior[level], &s.exterior[level], c, level};
     }
   }, options.num_threads);
   result.stats.pyramid_ms = ms_since(t);
@@ -109,6 +109,15 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     if (overlaps[i]) result.pairs.push_back(candidates[i]);
   }
   result.stats.pairs = static_cast<int>(result.pairs.size());
+  scratch.masks.resize(result.pairs.size());
+  parallel_for(0, static_cast<int>(result.pairs.size()), [&](int i) {
+    const auto [a, b] = result.pairs[i];
+    compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
+    compute_overlap_mask(views[b][levels], views[a][levels], 2 * d_r, scratch.masks[i].second);
+  }, options.num_threads);
+  auto masks_of = [&](const std::pair<int, int>& pair) -> const auto& {
+    return scratch.masks[std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin()];
+  };
   const auto rounds = schedule_pairs(result.pairs);
   result.stats.overlap_ms = ms_since(t);
 
@@ -133,8 +142,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (const auto& round : rounds) {
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const auto [a, b] = round[i];
-        remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, scratch.cameras[a].frbr,
-                                    scratch.cameras[b].frbr);
+        const auto& masks = masks_of(round[i]);
+        remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, masks.first, masks.second,
+                                    scratch.cameras[a].frbr, scratch.cameras[b].frbr);
       }, options.num_threads);
     }
   }
@@ -159,6 +169,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       const size_t pair_index = std::find(result.pairs.begin(), result.pairs.end(), round[i]) - result.pairs.begin();
       seams[pair_index] = clip_and_stitch(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                                           cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
+                                          scratch.masks[pair_index].first, scratch.masks[pair_index].second,
                                           scratch.cameras[a].seam, scratch.cameras[b].seam);
     }, options.num_threads);
   }

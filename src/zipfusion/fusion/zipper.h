@@ -71,6 +71,9 @@ struct ZipperScratch {
     std::vector<int> vertex_of_pixel;
   };
   std::vector<Camera> cameras;
+  // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
+  // coarsest level, and the reverse.
+  std::vector<std::pair<OverlapMask, OverlapMask>> masks;
 };
 
 ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch);
