@@ -119,19 +119,50 @@ bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen:
 }
 
 void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior) {
+  // Only the box around the cells with triangles is transformed (a person fills a quarter of a
+  // Kinect image), padded so that closing and the nearest-triangle distances inside it come out
+  // as on the whole image. Outside the box no triangle is within kFarPad cells, farther than any
+  // search window looks, so a large constant stands for the exterior distance there.
+  constexpr int kFarPad = 16;
+  constexpr float kFar = 1e6f;
   const int cells = mesh.width * mesh.height;
-  cv::Mat mask(mesh.height, mesh.width, CV_8UC1);
-  for (int i = 0; i < cells; ++i) mask.data[i] = mesh.triangles[i] ? 255 : 0;
+  int u0 = mesh.width, u1 = -1, v0 = mesh.height, v1 = -1;
+  for (int v = 0; v < mesh.height; ++v) {
+    const std::uint8_t* row = mesh.triangles.data() + v * mesh.width;
+    for (int u = 0; u < mesh.width; ++u) {
+      if (!row[u]) continue;
+      u0 = std::min(u0, u);
+      u1 = std::max(u1, u);
+      v0 = std::min(v0, v);
+      v1 = std::max(v1, v);
+    }
+  }
+  interior.assign(cells, 0.0f);
+  exterior.assign(cells, kFar);
+  if (u1 < 0) return;
+  const int pad = std::max(kFarPad, close_cells + 1);
+  const cv::Rect box(cv::Point(std::max(0, u0 - pad), std::max(0, v0 - pad)),
+                     cv::Point(std::min(mesh.width, u1 + 1 + pad), std::min(mesh.height, v1 + 1 + pad)));
+  cv::Mat mask(box.height, box.width, CV_8UC1);
+  for (int y = 0; y < box.height; ++y) {
+    const std::uint8_t* row = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
+    for (int x = 0; x < box.width; ++x) mask.at<std::uint8_t>(y, x) = row[x] ? 255 : 0;
+  }
   cv::Mat distance;
   cv::distanceTransform(~mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  exterior.assign(distance.ptr<float>(), distance.ptr<float>() + cells);
+  for (int y = 0; y < box.height; ++y) {
+    std::copy_n(distance.ptr<float>(y), box.width, exterior.data() + (box.y + y) * mesh.width + box.x);
+  }
   if (close_cells > 0) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
     cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
   }
   cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  interior.resize(cells);
-  for (int i = 0; i < cells; ++i) interior[i] = mesh.triangles[i] ? distance.ptr<float>()[i] : 0.0f;
+  for (int y = 0; y < box.height; ++y) {
+    const float* d = distance.ptr<float>(y);
+    const int base = (box.y + y) * mesh.width + box.x;
+    for (int x = 0; x < box.width; ++x) interior[base + x] = mesh.triangles[base + x] ? d[x] : 0.0f;
+  }
 }
 
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {

@@ -67,7 +67,8 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
 
 //! Per cell of `mesh`: `interior`, the distance (in cells) to the nearest cell without triangles
 //! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border), 0 where no
-//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh).
+//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh;
+//! beyond 16 cells from the triangles' bounding box, a large constant).
 void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior);
 
 //! Triangle id: cell index · 2 + (0 upper, 1 lower).
