@@ -7,13 +7,15 @@ BUILD_DIR=${BUILD_DIR:-build}
 OUT=${BENCH_OUT:-out/bench}
 SAMBA=${SAMBA:-../shared/data/samba-4cam}
 FRAMES=${BENCH_FRAMES:-40}
+SOAK=${BENCH_SOAK:-1000}
+SCALE_FRAMES=${BENCH_SCALE_FRAMES:-10}
 ZF=$BUILD_DIR/zipfusion
 mkdir -p "$OUT"
 
 step() { echo "== $*" >&2; }
 
-step "samba-4cam: stages, threads, coarse-to-fine, memory over 1000 frame sets"
-"$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 3 --soak 1000 --json > "$OUT/samba.json"
+step "samba-4cam: stages, threads, coarse-to-fine, memory over $SOAK frame sets"
+"$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 3 --soak "$SOAK" --json > "$OUT/samba.json"
 
 step "samba-4cam: quality of each mode (reconstruct + eval)"
 for mode in zipper separate; do
@@ -37,16 +39,17 @@ fi
 step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes"
 for cameras in 2 4 6 8; do
   capture="$OUT/synth/cameras_$cameras"
-  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras "$cameras" --frames 10 > /dev/null
-  "$ZF" bench "$capture" --frames 10 --repeat 2 --json > "$OUT/scale_cameras_$cameras.json"
+  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras "$cameras" --frames "$SCALE_FRAMES" > /dev/null
+  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_cameras_$cameras.json"
 done
 for size in 320x240 640x480 1280x960; do
   capture="$OUT/synth/size_$size"
-  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras 4 --frames 10 --resolution "$size" > /dev/null
-  "$ZF" bench "$capture" --frames 10 --repeat 2 --json > "$OUT/scale_size_$size.json"
+  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size" > /dev/null
+  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_size_$size.json"
 done
 
 step "kernels (Google Benchmark)"
+"$BUILD_DIR/zf_kernel_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/kernels.json"
 "$BUILD_DIR/zf_micro_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/micro.json"
 
 step "writing docs/benchmarks.md"

@@ -12,6 +12,7 @@ packages=(
   libcgal-dev                        # 2-D Delaunay triangulation of seams
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
+  python3                            # scripts/bench_report.py writes docs/benchmarks.md
 )
 
 missing=()
