@@ -102,12 +102,10 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
 //! Calls f(id) for every existing triangle of `mesh`, in id order.
 template <typename F>
 void for_each_triangle_id(const DepthMesh& mesh, F&& f) {
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    const std::uint8_t bits = mesh.triangles[cell];
+  for_each_nonempty_cell(mesh.triangles, [&](int cell, std::uint8_t bits) {
     if (bits & kUpperTriangle) f(triangle_id(cell, kUpperTriangle));
     if (bits & kLowerTriangle) f(triangle_id(cell, kLowerTriangle));
-  }
+  });
 }
 
 //! The boundary triangles of `mesh` (ids), in id order.
