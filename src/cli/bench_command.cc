@@ -142,6 +142,8 @@ void run_bench(const BenchArgs& args) {
       {"separate+filter", options(ReconstructMode::kSeparate, true)},
       {"separate", options(ReconstructMode::kSeparate, false)},
   };
+  configs.push_back({"zipper+separable filter", options(ReconstructMode::kZipper, true)});
+  configs.back().options.filter.separable = true;
   configs.push_back({"zipper 1 thread", options(ReconstructMode::kZipper, false)});
   configs.back().options.num_threads = 1;
   configs.push_back({"zipper no coarse-to-fine", options(ReconstructMode::kZipper, false)});

@@ -12,7 +12,7 @@ struct BilateralOptions {
   double spatial_sigma_px = 4.0;  // pixels (paper)
   int radius_px = 6;              // pixels (paper)
   double range_sigma_m = 0.05;    // metres (paper: 50 mm)
-  bool separable = true;          // a row pass then a column pass (2·(2r+1) taps, not (2r+1)²)
+  bool separable = false;         // a row pass then a column pass (2·(2r+1) taps, not (2r+1)²)
 
   void validate() const;  // throws InvalidInput naming the field
 };
@@ -20,7 +20,7 @@ struct BilateralOptions {
 //! Precomputed weights of one filter configuration, shared by all pixels and threads.
 struct BilateralKernel {
   int radius = 0;
-  bool separable = true;
+  bool separable = false;
   std::vector<float> spatial;     // (2r+1)², row-major
   std::vector<float> spatial_1d;  // 2r+1: the same Gaussian along one axis
   float range_lut_scale = 0;   // LUT index per metre of |Δz|
