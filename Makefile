@@ -31,9 +31,9 @@ demo: build
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
 
+# Every benchmark, then docs/benchmarks.md from the results (about 10 minutes on 2 cores).
 bench: build
-	$(BUILD_DIR)/zf_micro_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
-	$(BUILD_DIR)/zf_zipper_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+	BUILD_DIR=$(BUILD_DIR) scripts/bench.sh
 	$(BUILD_DIR)/zf_registration_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
 clean:

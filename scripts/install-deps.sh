@@ -13,6 +13,7 @@ packages=(
   libnanoflann-dev                   # k-d trees: closest points for registration
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
+  python3                            # scripts/bench_report.py writes docs/benchmarks.md
 )
 
 missing=()

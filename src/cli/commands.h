@@ -10,6 +10,7 @@ void add_synth_command(CLI::App& app);
 void add_info_command(CLI::App& app);
 void add_reconstruct_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
+void add_bench_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 
 //! Progress on standard error, only when it is a terminal: "label: done/total".

@@ -14,7 +14,7 @@
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/pipeline/background_registration.h"
-#include "zipfusion/pipeline/reconstruct.h"
+#include "zipfusion/pipeline/pipeline.h"
 
 namespace zipfusion::cli {
 namespace {
@@ -47,7 +47,8 @@ double median_of(std::vector<double> values) {
 
 void run_reconstruct(ReconstructArgs& args) {
   ReconstructOptions& options = args.options;
-  options.bilateral = args.filter == "bilateral";
+  options.bilateral = args.filter != "none";
+  options.filter.separable = args.filter == "bilateral-separable";
   options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
@@ -83,37 +84,39 @@ void run_reconstruct(ReconstructArgs& args) {
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
   const std::string extension = "." + args.format;
-  for (int frame = range.begin; frame < range.end; ++frame) {
-    const Clock::time_point decode_start = Clock::now();
-    const FrameSet set = capture.load_frame(frame);
-    const double decode_ms = ms_since(decode_start);
-    if (background) {
-      // Poses refined since the last frame take effect now; the frame never waits for the worker.
+  // --register background: refined poses are swapped in between frames on the reconstruction
+  // thread, and frame sets are offered to the worker there; neither waits for a refinement.
+  PipelineOptions pipeline_options;
+  if (background) {
+    pipeline_options.before_reconstruct = [&](const FrameSet& set, FrameReconstructor& target) {
       const auto poses = background->latest_poses();
       if (poses->version != pose_version) {
-        reconstructor.set_poses(poses->world_from_depth);
+        target.set_poses(poses->world_from_depth);
         pose_version = poses->version;
-        pose_updates.push_back({{"frame", frame}, {"version", pose_version}, {"refined_on_frame", poses->frame}});
+        pose_updates.push_back({{"frame", set.index}, {"version", pose_version}, {"refined_on_frame", poses->frame}});
       }
       background->offer(set);
-    }
-    const FrameResult result = reconstructor.reconstruct(set);
+    };
+  }
+  // Decoding, reconstruction and writing overlap: each runs on its own thread.
+  const PipelineStats pipeline = run_pipeline(capture_source(capture, range.begin, range.end), reconstructor, [&](PipelineFrame& frame) {
+    const FrameResult& result = frame.result;
     const Clock::time_point write_start = Clock::now();
-    write_mesh(out_dir / frame_file_name(frame, extension), result.mesh);
+    write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh);
     const double write_ms = ms_since(write_start);
     const StageTimes& t = result.times;
     totals.push_back(t.total_ms);
-    frames.push_back({{"frame", frame},
+    frames.push_back({{"frame", frame.index},
                       {"cameras_used", result.cameras_used},
                       {"triangles", result.mesh.triangle_count()},
                       {"vertices", result.mesh.vertex_count()},
-                      {"ms", {{"decode", decode_ms}, {"foreground", t.foreground_ms}, {"filter", t.filter_ms}, {"triangulate", t.triangulate_ms},
+                      {"ms", {{"decode", frame.decode_ms}, {"foreground", t.foreground_ms}, {"filter", t.filter_ms}, {"triangulate", t.triangulate_ms},
                               {"color", t.color_ms}, {"overlap", t.overlap_ms}, {"redundancy", t.redundancy_ms}, {"clipping", t.clipping_ms},
                               {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}},
-                    {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
-                                {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
-    show_progress("reconstruct", frame - range.begin + 1, range.end - range.begin);
-  }
+                      {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
+                                  {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
+    show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
+  }, pipeline_options);
 
   nlohmann::ordered_json stats;
   stats["capture"] = args.capture;
@@ -139,6 +142,7 @@ void run_reconstruct(ReconstructArgs& args) {
   stats["pose_updates"] = pose_updates;
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
+  stats["wall_ms"] = pipeline.wall_ms;
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
   std::cout << "wrote " << frames.size() << " meshes (" << args.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
@@ -156,8 +160,10 @@ void add_reconstruct_command(CLI::App& app) {
   cmd->add_option("--mode", args->mode, "zipper: one connected mesh; separate: one SDC mesh per camera, concatenated")
       ->check(CLI::IsMember({"zipper", "separate"}))
       ->capture_default_str();
-  cmd->add_option("--filter", args->filter, "Depth filter before triangulation")
-      ->check(CLI::IsMember({"bilateral", "none"}))
+  cmd->add_option("--filter", args->filter,
+                  "Depth filter before triangulation: bilateral (the paper's square window), bilateral-separable (a row then a "
+                  "column pass, 4.5x faster) or none")
+      ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
       ->capture_default_str();
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
   cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");

@@ -14,6 +14,7 @@ namespace {
 struct SynthArgs {
   std::string out;
   std::string miscalibrate;
+  std::string resolution = "640x480";
   std::string color_format = "jpg";
   std::string noise = "kinect";
   SynthOptions options;
@@ -31,9 +32,20 @@ void parse_miscalibration(const std::string& text, SynthOptions& options) {
   options.miscalibrate_m = metres;
 }
 
+void parse_resolution(const std::string& text, SynthOptions& options) {
+  int width = 0, height = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &width, &height, &tail) != 2) {
+    throw InvalidInput("--resolution: expected WxH (e.g. 320x240), got \"" + text + "\"");
+  }
+  options.depth_width = width;
+  options.depth_height = height;
+}
+
 void run_synth(SynthArgs& args) {
   SynthOptions& options = args.options;
   parse_miscalibration(args.miscalibrate, options);
+  parse_resolution(args.resolution, options);
   options.color_extension = "." + args.color_format;
   if (args.noise == "none") {
     options.noise = KinectNoiseOptions::none();
@@ -64,6 +76,8 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--radius", o.radius_m, "Circle radius, metres")->capture_default_str();
   cmd->add_option("--height", o.camera_height_m, "Camera height above the floor, metres")->capture_default_str();
   cmd->add_option("--target-height", o.target_height_m, "Height the cameras look at, metres")->capture_default_str();
+  cmd->add_option("--resolution", args->resolution, "Depth and colour image size WxH (the field of view stays the Kinect's)")
+      ->capture_default_str();
   cmd->add_option("--subject", o.subject_pattern,
                   "Mesh sequence instead of the built-in human: printf pattern of .ply/.obj files, e.g. 'dir/%06d.ply'");
   cmd->add_option("--miscalibrate", args->miscalibrate,

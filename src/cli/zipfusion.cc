@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   zipfusion::cli::add_info_command(app);
   zipfusion::cli::add_reconstruct_command(app);
   zipfusion::cli::add_eval_command(app);
+  zipfusion::cli::add_bench_command(app);
   zipfusion::cli::add_register_command(app);
   try {
     app.parse(argc, argv);

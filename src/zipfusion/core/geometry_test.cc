@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <thread>
+
 #include "zipfusion/core/camera.h"
 #include "zipfusion/core/parallel.h"
 
@@ -78,6 +81,24 @@ TEST(Parallel, VisitsEveryIndexOnceAndRethrows) {
   parallel_for(0, 1000, [&](int i) { visits[i]++; }, 4);
   for (int v : visits) EXPECT_EQ(v, 1);
   EXPECT_THROW(parallel_for(0, 100, [](int i) { if (i == 57) throw std::runtime_error("x"); }, 3), std::runtime_error);
+  // The pool survives an exception.
+  std::atomic<int> sum = 0;
+  parallel_for(0, 100, [&](int i) { sum += i; });
+  EXPECT_EQ(sum, 4950);
+}
+
+TEST(Parallel, NestedAndConcurrentCallsFinish) {
+  // Calls from inside a body and from several threads at once share the pool; none may wait
+  // forever on a worker that waits on it.
+  std::atomic<long> sum = 0;
+  std::vector<std::jthread> callers;
+  for (int t = 0; t < 4; ++t) {
+    callers.emplace_back([&] {
+      parallel_for(0, 8, [&](int i) { parallel_for(0, 100, [&](int j) { sum += i * 100 + j; }); });
+    });
+  }
+  callers.clear();
+  EXPECT_EQ(sum, 4 * (799L * 800 / 2));
 }
 
 }  // namespace

@@ -1,41 +1,129 @@
 #include "zipfusion/core/parallel.h"
 
 #include <algorithm>
+#include <condition_variable>
+#include <deque>
 #include <exception>
 #include <mutex>
 #include <thread>
 #include <vector>
 
 namespace zipfusion {
+namespace {
+
+// One parallel_for call: its blocks still running and the first exception.
+struct Job {
+  int remaining = 0;
+  std::exception_ptr first_error;
+  std::condition_variable done;
+};
+
+struct Task {
+  Job* job;
+  std::function<void()> run;
+};
+
+// Workers kept for the life of the process: a frame set makes dozens of parallel_for calls, and
+// starting threads for each cost about a millisecond per frame. A caller runs one block itself
+// and, while its other blocks are pending, runs queued tasks (its own or other callers'), so
+// nested or concurrent calls never wait on a worker that waits on them.
+class ThreadPool {
+ public:
+  explicit ThreadPool(int workers) {
+    for (int i = 0; i < workers; ++i) workers_.emplace_back([this](std::stop_token stop) { work(stop); });
+  }
+
+  ~ThreadPool() {
+    for (auto& worker : workers_) worker.request_stop();
+    wake_.notify_all();
+  }
+
+  int workers() const { return static_cast<int>(workers_.size()); }
+
+  void run(std::vector<std::function<void()>>& blocks) {
+    Job job;
+    job.remaining = static_cast<int>(blocks.size());
+    {
+      std::lock_guard lock(mutex_);
+      for (size_t i = 1; i < blocks.size(); ++i) queue_.push_back({&job, std::move(blocks[i])});
+    }
+    wake_.notify_all();
+    execute({&job, std::move(blocks[0])});
+    std::unique_lock lock(mutex_);
+    while (job.remaining > 0) {
+      if (!queue_.empty()) {
+        Task task = std::move(queue_.front());
+        queue_.pop_front();
+        lock.unlock();
+        execute(std::move(task));
+        lock.lock();
+      } else {
+        job.done.wait(lock);
+      }
+    }
+    if (job.first_error) std::rethrow_exception(job.first_error);
+  }
+
+ private:
+  void execute(Task task) {
+    std::exception_ptr error;
+    try {
+      task.run();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    std::lock_guard lock(mutex_);
+    if (error && !task.job->first_error) task.job->first_error = error;
+    if (--task.job->remaining == 0) task.job->done.notify_all();
+  }
+
+  void work(std::stop_token stop) {
+    std::unique_lock lock(mutex_);
+    while (true) {
+      wake_.wait(lock, [&] { return stop.stop_requested() || !queue_.empty(); });
+      if (stop.stop_requested()) return;
+      Task task = std::move(queue_.front());
+      queue_.pop_front();
+      lock.unlock();
+      execute(std::move(task));
+      lock.lock();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Task> queue_;
+  std::vector<std::jthread> workers_;  // last: stopped and joined before the rest is destroyed
+};
+
+ThreadPool& pool() {
+  static ThreadPool instance(std::max(1, hardware_threads() - 1));
+  return instance;
+}
+
+}  // namespace
 
 int hardware_threads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 void parallel_for(int begin, int end, const std::function<void(int)>& body, int num_threads) {
   const int count = end - begin;
   if (count <= 0) return;
-  const int threads = std::min(count, num_threads > 0 ? num_threads : hardware_threads());
+  ThreadPool& workers = pool();
+  const int threads = std::min({count, num_threads > 0 ? num_threads : hardware_threads(), workers.workers() + 1});
   if (threads == 1) {
     for (int i = begin; i < end; ++i) body(i);
     return;
   }
-  std::exception_ptr first_error;
-  std::mutex error_mutex;
-  auto run_block = [&](int block) {
+  std::vector<std::function<void()>> blocks;
+  blocks.reserve(threads);
+  for (int block = 0; block < threads; ++block) {
     const int lo = begin + static_cast<int>(static_cast<long long>(count) * block / threads);
     const int hi = begin + static_cast<int>(static_cast<long long>(count) * (block + 1) / threads);
-    try {
+    blocks.emplace_back([&body, lo, hi] {
       for (int i = lo; i < hi; ++i) body(i);
-    } catch (...) {
-      std::lock_guard lock(error_mutex);
-      if (!first_error) first_error = std::current_exception();
-    }
-  };
-  std::vector<std::jthread> workers;
-  workers.reserve(threads - 1);
-  for (int block = 1; block < threads; ++block) workers.emplace_back(run_block, block);
-  run_block(0);
-  workers.clear();  // joins
-  if (first_error) std::rethrow_exception(first_error);
+    });
+  }
+  workers.run(blocks);
 }
 
 }  // namespace zipfusion

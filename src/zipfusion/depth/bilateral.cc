@@ -17,9 +17,13 @@ void BilateralOptions::validate() const {
   if (!(range_sigma_m > 0)) throw InvalidInput("bilateral-range-sigma: must be positive");
 }
 
-BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(options.radius_px) {
+BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(options.radius_px), separable(options.separable) {
   const int side = 2 * radius + 1;
   spatial.resize(static_cast<size_t>(side) * side);
+  spatial_1d.resize(side);
+  for (int d = -radius; d <= radius; ++d) {
+    spatial_1d[d + radius] = static_cast<float>(std::exp(-(d * d) / (2 * options.spatial_sigma_px * options.spatial_sigma_px)));
+  }
   const double two_sigma2 = 2 * options.spatial_sigma_px * options.spatial_sigma_px;
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {
@@ -35,14 +39,32 @@ BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(optio
   }
 }
 
-void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads) {
-  assert(&depth_m != &out);
-  out.resize(depth_m.width, depth_m.height);
-  parallel_for(0, depth_m.height, [&](int v) {
-    for (int u = 0; u < depth_m.width; ++u) {
-      out.data[static_cast<size_t>(v) * depth_m.width + u] = bilateral_pixel(u, v, depth_m.data.data(), depth_m.width, depth_m.height, kernel);
+void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch, int num_threads) {
+  assert(&depth_m != &out && &scratch != &out && &scratch != &depth_m);
+  const int width = depth_m.width, height = depth_m.height;
+  out.resize(width, height);
+  if (!kernel.separable) {
+    parallel_for(0, height, [&](int v) {
+      for (int u = 0; u < width; ++u) out.data[static_cast<size_t>(v) * width + u] = bilateral_pixel(u, v, depth_m.data.data(), width, height, kernel);
+    }, num_threads);
+    return;
+  }
+  scratch.resize(width, height);
+  parallel_for(0, height, [&](int v) {
+    for (int u = 0; u < width; ++u) {
+      scratch.data[static_cast<size_t>(v) * width + u] = bilateral_pixel_1d(u, v, depth_m.data.data(), width, height, 1, kernel);
     }
   }, num_threads);
+  parallel_for(0, height, [&](int v) {
+    for (int u = 0; u < width; ++u) {
+      out.data[static_cast<size_t>(v) * width + u] = bilateral_pixel_1d(u, v, scratch.data.data(), width, height, width, kernel);
+    }
+  }, num_threads);
+}
+
+void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads) {
+  Image<float> scratch;
+  bilateral_filter(depth_m, kernel, out, scratch, num_threads);
 }
 
 }  // namespace zipfusion

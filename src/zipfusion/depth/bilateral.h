@@ -12,6 +12,7 @@ struct BilateralOptions {
   double spatial_sigma_px = 4.0;  // pixels (paper)
   int radius_px = 6;              // pixels (paper)
   double range_sigma_m = 0.05;    // metres (paper: 50 mm)
+  bool separable = false;         // a row pass then a column pass (2·(2r+1) taps, not (2r+1)²)
 
   void validate() const;  // throws InvalidInput naming the field
 };
@@ -19,7 +20,9 @@ struct BilateralOptions {
 //! Precomputed weights of one filter configuration, shared by all pixels and threads.
 struct BilateralKernel {
   int radius = 0;
-  std::vector<float> spatial;  // (2r+1)², row-major
+  bool separable = false;
+  std::vector<float> spatial;     // (2r+1)², row-major
+  std::vector<float> spatial_1d;  // 2r+1: the same Gaussian along one axis
   float range_lut_scale = 0;   // LUT index per metre of |Δz|
   std::vector<float> range;    // exp(−Δz²/2σ²) tabulated up to 3σ (0 beyond)
 
@@ -52,7 +55,36 @@ inline float bilateral_pixel(int u, int v, const float* depth, int width, int he
   return value_sum / weight_sum;
 }
 
-//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input.
+//! Element function: one pass of the separable filter at pixel (u, v): along the row (`step` 1)
+//! or the column (`step` = width); 0 where the input is 0.
+inline float bilateral_pixel_1d(int u, int v, const float* depth, int width, int height, int step, const BilateralKernel& kernel) {
+  const float centre = depth[v * width + u];
+  if (centre <= 0.0f) return 0.0f;
+  const int r = kernel.radius;
+  const int position = step == 1 ? u : v, size = step == 1 ? width : height;
+  const int first = position - r < 0 ? -position : -r, last = position + r >= size ? size - 1 - position : r;
+  const int lut_last = static_cast<int>(kernel.range.size()) - 1;
+  const float* origin = depth + v * width + u;
+  float weight_sum = 0.0f, value_sum = 0.0f;
+  for (int k = first; k <= last; ++k) {
+    const float z = origin[k * step];
+    if (z <= 0.0f) continue;
+    const float diff = z > centre ? z - centre : centre - z;
+    const int bin = static_cast<int>(diff * kernel.range_lut_scale);
+    if (bin > lut_last) continue;
+    const float w = kernel.spatial_1d[k + r] * kernel.range[bin];
+    weight_sum += w;
+    value_sum += w * z;
+  }
+  return value_sum / weight_sum;
+}
+
+//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input;
+//! `scratch` holds the separable filter's row pass.
+void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch,
+                      int num_threads = 1);
+
+//! As above, with a scratch image of its own.
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads = 1);
 
 }  // namespace zipfusion

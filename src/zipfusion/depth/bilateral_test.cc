@@ -35,10 +35,19 @@ double rms_error(const Image<float>& depth, int u0, int u1, float truth) {
   return std::sqrt(sum / n);
 }
 
-TEST(Bilateral, SmoothsSurfacesAndKeepsStepsAndHoles) {
+// Both forms of the filter, the separable default and the paper's square window, must do the job.
+class BilateralForm : public ::testing::TestWithParam<bool> {
+ protected:
+  BilateralOptions options() const { return {.separable = GetParam()}; }
+};
+
+INSTANTIATE_TEST_SUITE_P(Forms, BilateralForm, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& form) { return form.param ? "Separable" : "SquareWindow"; });
+
+TEST_P(BilateralForm, SmoothsSurfacesAndKeepsStepsAndHoles) {
   const Image<float> input = noisy_step(64, 48, 3);
   Image<float> output;
-  bilateral_filter(input, BilateralKernel(BilateralOptions{}), output, 2);
+  bilateral_filter(input, BilateralKernel(options()), output, 2);
   // Noise within each side drops several times (the paper's σ 4 px kernel averages ~100 pixels).
   EXPECT_LT(rms_error(output, 0, 30, 2.0f), rms_error(input, 0, 30, 2.0f) / 4);
   EXPECT_LT(rms_error(output, 34, 64, 2.3f), rms_error(input, 34, 64, 2.3f) / 4);
@@ -51,18 +60,18 @@ TEST(Bilateral, SmoothsSurfacesAndKeepsStepsAndHoles) {
   for (size_t i = 0; i < input.size(); ++i) EXPECT_EQ(output.data[i] == 0, input.data[i] == 0) << i;
 }
 
-TEST(Bilateral, FlatSurfaceIsAFixedPoint) {
+TEST_P(BilateralForm, FlatSurfaceIsAFixedPoint) {
   Image<float> flat(20, 20, 1.5f);
   flat(3, 3) = 0;
   Image<float> output;
-  bilateral_filter(flat, BilateralKernel(BilateralOptions{}), output, 1);
+  bilateral_filter(flat, BilateralKernel(options()), output, 1);
   for (size_t i = 0; i < flat.size(); ++i) EXPECT_NEAR(output.data[i], flat.data[i], 1e-5f);  // float rounding: 10 µm
 }
 
-TEST(Bilateral, ThreadCountDoesNotChangeTheResult) {
+TEST_P(BilateralForm, ThreadCountDoesNotChangeTheResult) {
   const Image<float> input = noisy_step(50, 40, 9);
   Image<float> one, two;
-  const BilateralKernel kernel(BilateralOptions{.spatial_sigma_px = 3, .radius_px = 4, .range_sigma_m = 0.03});
+  const BilateralKernel kernel(BilateralOptions{.spatial_sigma_px = 3, .radius_px = 4, .range_sigma_m = 0.03, .separable = GetParam()});
   bilateral_filter(input, kernel, one, 1);
   bilateral_filter(input, kernel, two, 2);
   EXPECT_EQ(one, two);

@@ -10,7 +10,7 @@ void SdcOptions::validate() const {
 
 int DepthMesh::triangle_count() const {
   int count = 0;
-  for (std::uint8_t bits : triangles) count += (bits & kUpperTriangle ? 1 : 0) + (bits & kLowerTriangle ? 1 : 0);
+  for_each_nonempty_cell(triangles, [&](int, std::uint8_t bits) { count += (bits & kUpperTriangle ? 1 : 0) + (bits & kLowerTriangle ? 1 : 0); });
   return count;
 }
 

@@ -14,7 +14,9 @@
 //! below the threshold). The triangles are kept as this per-pixel bit matrix until assembly, so
 //! boundary tests, coarse-to-fine and removal are array operations.
 
+#include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "zipfusion/core/camera.h"
@@ -101,21 +103,42 @@ inline bool project_world_point(const Eigen::Vector3f& p_world, const Rigid3f& d
   return true;
 }
 
+//! Calls f(cell, bits) for every cell with a triangle, in order. Most cells of a depth camera's
+//! image hold none (the subject fills a fraction of it), so empty cells are skipped eight at a
+//! time.
+template <typename F>
+void for_each_nonempty_cell(const std::vector<std::uint8_t>& triangles, F&& f) {
+  const int cells = static_cast<int>(triangles.size());
+  const std::uint8_t* bits = triangles.data();
+  int cell = 0;
+  while (cell < cells) {
+    if (cell + 8 <= cells) {
+      std::uint64_t word;
+      std::memcpy(&word, bits + cell, sizeof word);
+      if (word == 0) {
+        cell += 8;
+        continue;
+      }
+    }
+    const int end = std::min(cell + 8, cells);
+    for (; cell < end; ++cell) {
+      if (bits[cell]) f(cell, bits[cell]);
+    }
+  }
+}
+
 //! Calls f(pixels) with the three pixel indices (as triangle_pixels gives them) of every existing
 //! triangle of `mesh`, in cell order.
 template <typename F>
 void for_each_triangle(const DepthMesh& mesh, F&& f) {
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    const std::uint8_t bits = mesh.triangles[cell];
-    if (!bits) continue;
+  for_each_nonempty_cell(mesh.triangles, [&](int cell, std::uint8_t bits) {
     for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
       if (!(bits & bit)) continue;
       int pixels[3];
       triangle_pixels(cell, mesh.width, bit, pixels);
       f(pixels);
     }
-  }
+  });
 }
 
 //! Triangulates `depth_m` (metres, 0 = none) of a camera into `out`, reusing its buffers.

@@ -58,8 +58,10 @@ bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float t
 
 //! Takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out of both meshes
 //! and returns the triangles that stitch them; the views' camera indices label the seam's
-//! vertices. `centre_a`, `centre_b`: the cameras' centres in the world.
+//! vertices. `centre_a`, `centre_b`: the cameras' centres in the world. `mask_a` (`mask_b`): where
+//! b sees a (a sees b); seams start only inside.
 Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                     const SeamOptions& options, SeamScratch& scratch_a, SeamScratch& scratch_b);
+                     const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
+                     SeamScratch& scratch_b);
 
 }  // namespace zipfusion

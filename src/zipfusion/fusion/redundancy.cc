@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 
 namespace zipfusion {
@@ -18,13 +19,14 @@ void enqueue(FrbrScratch& s, int id) {
 
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
-int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, FrbrScratch& s) {
+int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   s.removals.clear();
   for (int id : s.worklist) {
     const int cell = cell_of(id);
     const TriangleBit bit = bit_of(id);
     if (!(mesh.triangles[cell] & bit)) continue;
+    if (!mask.covers(cell, mesh.width, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
     const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
     if (owner_is_other(a, cell, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
@@ -88,6 +90,25 @@ bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tole
   return false;
 }
 
+namespace {
+
+// Does b have depth within `depth_tolerance` of p's at a pixel next to p's projection? Unlike
+// may_see_point, a pixel without depth does not count.
+bool may_see_surface(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
+  Eigen::Vector2f pixel;
+  float depth = 0;
+  if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
+  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
+  if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
+  const int base = v * b.mesh->width + u;
+  for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
+    if (std::abs(b.mesh->depth[index] - depth) < depth_tolerance) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
   // for b's triangles near p is skipped.
@@ -98,19 +119,50 @@ bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen:
 }
 
 void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior) {
+  // Only the box around the cells with triangles is transformed (a person fills a quarter of a
+  // Kinect image), padded so that closing and the nearest-triangle distances inside it come out
+  // as on the whole image. Outside the box no triangle is within kFarPad cells, farther than any
+  // search window looks, so a large constant stands for the exterior distance there.
+  constexpr int kFarPad = 16;
+  constexpr float kFar = 1e6f;
   const int cells = mesh.width * mesh.height;
-  cv::Mat mask(mesh.height, mesh.width, CV_8UC1);
-  for (int i = 0; i < cells; ++i) mask.data[i] = mesh.triangles[i] ? 255 : 0;
+  int u0 = mesh.width, u1 = -1, v0 = mesh.height, v1 = -1;
+  for (int v = 0; v < mesh.height; ++v) {
+    const std::uint8_t* row = mesh.triangles.data() + v * mesh.width;
+    for (int u = 0; u < mesh.width; ++u) {
+      if (!row[u]) continue;
+      u0 = std::min(u0, u);
+      u1 = std::max(u1, u);
+      v0 = std::min(v0, v);
+      v1 = std::max(v1, v);
+    }
+  }
+  interior.assign(cells, 0.0f);
+  exterior.assign(cells, kFar);
+  if (u1 < 0) return;
+  const int pad = std::max(kFarPad, close_cells + 1);
+  const cv::Rect box(cv::Point(std::max(0, u0 - pad), std::max(0, v0 - pad)),
+                     cv::Point(std::min(mesh.width, u1 + 1 + pad), std::min(mesh.height, v1 + 1 + pad)));
+  cv::Mat mask(box.height, box.width, CV_8UC1);
+  for (int y = 0; y < box.height; ++y) {
+    const std::uint8_t* row = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
+    for (int x = 0; x < box.width; ++x) mask.at<std::uint8_t>(y, x) = row[x] ? 255 : 0;
+  }
   cv::Mat distance;
   cv::distanceTransform(~mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  exterior.assign(distance.ptr<float>(), distance.ptr<float>() + cells);
+  for (int y = 0; y < box.height; ++y) {
+    std::copy_n(distance.ptr<float>(y), box.width, exterior.data() + (box.y + y) * mesh.width + box.x);
+  }
   if (close_cells > 0) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
     cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
   }
   cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  interior.resize(cells);
-  for (int i = 0; i < cells; ++i) interior[i] = mesh.triangles[i] ? distance.ptr<float>()[i] : 0.0f;
+  for (int y = 0; y < box.height; ++y) {
+    const float* d = distance.ptr<float>(y);
+    const int base = (box.y + y) * mesh.width + box.x;
+    for (int x = 0; x < box.width; ++x) interior[base + x] = mesh.triangles[base + x] ? d[x] : 0.0f;
+  }
 }
 
 bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
@@ -124,10 +176,12 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
   // in the first rings, so rings are searched from the centre outwards.
   const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
   const int last_u = mesh.width - 2, last_v = mesh.height - 2;
-  // Far from any triangle of the mesh (in its image): nothing to search.
-  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v &&
-      (*view.exterior)[cv * mesh.width + cu] > static_cast<float>(window) * 1.5f + 1.0f) {
-    return false;
+  // No cell of ring r is farther than r·√2 from the centre cell, so the rings nearer than the
+  // nearest cell with a triangle (exterior distance, a chamfer estimate within 5 %) are empty.
+  int first_ring = 0;
+  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v) {
+    first_ring = static_cast<int>(std::ceil(0.95f * (*view.exterior)[cv * mesh.width + cu] / std::numbers::sqrt2_v<float>)) - 1;
+    if (first_ring > window) return false;
   }
   const float distance2 = distance * distance;
   auto cell_has_near = [&](int u, int v) {
@@ -138,8 +192,8 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
     return ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) ||
            ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2);
   };
-  if (cell_has_near(cu, cv)) return true;
-  for (int ring = 1; ring <= window; ++ring) {
+  if (first_ring <= 0 && cell_has_near(cu, cv)) return true;
+  for (int ring = std::max(1, first_ring); ring <= window; ++ring) {
     if (cu + ring < 0 || cu - ring > last_u || cv + ring < 0 || cv - ring > last_v) return false;
     for (int d = -ring; d <= ring; ++d) {
       if (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring)) return true;
@@ -175,14 +229,15 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance) {
 }
 
 FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,
-                                       FrbrScratch& scratch_a, FrbrScratch& scratch_b) {
+                                       const OverlapMask& mask_a, const OverlapMask& mask_b, FrbrScratch& scratch_a,
+                                       FrbrScratch& scratch_b) {
   FrbrResult result;
   start_worklist(*a.mesh, whole_first_sweep, scratch_a);
   start_worklist(*b.mesh, whole_first_sweep, scratch_b);
   bool boundary_only = !whole_first_sweep;
   while (true) {
-    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, scratch_a);
-    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, scratch_b);
+    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, mask_a, scratch_a);
+    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, mask_b, scratch_b);
     boundary_only = true;
     ++result.iterations;
     result.removed_a += removed_a;
@@ -190,6 +245,19 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
     if (removed_a == 0 && removed_b == 0) break;
   }
   return result;
+}
+
+void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tolerance, OverlapMask& mask) {
+  const DepthMesh& mesh = *a.mesh;
+  mask.width = mesh.width;
+  mask.level = a.level;
+  mask.cells.assign(mesh.depth.size(), 0);
+  const int cells = mesh.width * mesh.height;
+  for (int cell = 0; cell < cells; ++cell) {
+    if (mesh.depth[cell] > 0 && may_see_surface(b, mesh.points[cell], depth_tolerance)) mask.cells[cell] = 255;
+  }
+  cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
+  cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
 }
 
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse) {

@@ -38,11 +38,37 @@ struct MeshView {
   const std::vector<float>* interior = nullptr;  // per cell: distance to the mesh's border, cells
   const std::vector<float>* exterior = nullptr;  // per cell: distance to the nearest cell with a triangle, cells
   int camera = 0;                                 // breaks ownership ties
+  int level = 0;                                  // pyramid level: cells are 2^level pixels
 };
+
+//! Where, coarsely, another camera sees the surface of a camera's mesh: per cell of a coarse view
+//! of the mesh, whether the other camera has depth close to the mesh's point there, dilated by
+//! one cell (so the window searches at the other mesh's border stay inside). Redundancy tests and
+//! seam seeds outside the mask cannot succeed, so they are skipped without a search: most of a
+//! mesh's boundary (silhouettes, noise holes) lies outside every other camera's overlap.
+//! An empty mask covers everything.
+struct OverlapMask {
+  std::vector<std::uint8_t> cells;
+  int width = 0;
+  int level = 0;
+
+  //! Does the mask cover cell `cell` of a view at `view_level` (≤ level), `view_width` cells wide?
+  bool covers(int cell, int view_width, int view_level) const {
+    if (cells.empty()) return true;
+    const int shift = level - view_level;
+    return cells[((cell / view_width) >> shift) * width + ((cell % view_width) >> shift)] != 0;
+  }
+};
+
+//! Fills `mask` for view `a` (a coarse level) against camera `b` (any level): a cell is set where
+//! a's point there projects into b onto depth within `depth_tolerance` of its own, then the mask
+//! is dilated by one cell.
+void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tolerance, OverlapMask& mask);
 
 //! Per cell of `mesh`: `interior`, the distance (in cells) to the nearest cell without triangles
 //! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border), 0 where no
-//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh).
+//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh;
+//! beyond 16 cells from the triangles' bounding box, a large constant).
 void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior);
 
 //! Triangle id: cell index · 2 + (0 upper, 1 lower).
@@ -76,12 +102,10 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
 //! Calls f(id) for every existing triangle of `mesh`, in id order.
 template <typename F>
 void for_each_triangle_id(const DepthMesh& mesh, F&& f) {
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    const std::uint8_t bits = mesh.triangles[cell];
+  for_each_nonempty_cell(mesh.triangles, [&](int cell, std::uint8_t bits) {
     if (bits & kUpperTriangle) f(triangle_id(cell, kUpperTriangle));
     if (bits & kLowerTriangle) f(triangle_id(cell, kLowerTriangle));
-  }
+  });
 }
 
 //! The boundary triangles of `mesh` (ids), in id order.
@@ -126,8 +150,10 @@ struct FrbrResult {
 //! on the coarsest level: it also removes doubled patches that noise or holes cut off from the
 //! mesh's boundary, which peeling never reaches).
 //! Not thread-safe for views that share a mesh; distinct pairs may run in parallel.
+//! `mask_a` (`mask_b`): where b sees a (a sees b); triangles outside are never redundant.
 FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,
-                                       FrbrScratch& scratch_a, FrbrScratch& scratch_b);
+                                       const OverlapMask& mask_a, const OverlapMask& mask_b, FrbrScratch& scratch_a,
+                                       FrbrScratch& scratch_b);
 
 //! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (depth and world
 //! points), triangulated by SDC with the depth-jump threshold scaled by 2^level.

@@ -2,7 +2,7 @@
 
 #include <chrono>
 #include <cmath>
-#include <unordered_set>
+#include <algorithm>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
@@ -81,13 +81,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
     compute_coverage_distances(*cameras[c].mesh, options.hole_closing_px, s.interior[0], s.exterior[0]);
     views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.interior[0],
-                   &s.exterior[0], c};
+                   &s.exterior[0], c, 0};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
       compute_coverage_distances(s.levels[level - 1], std::max(1, options.hole_closing_px >> level), s.interior[level], s.exterior[level]);
       views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world,
-                         &s.interior[level], &s.exterior[level], c};
+                         &s.interior[level], &s.exterior[level], c, level};
     }
   }, options.num_threads);
   result.stats.pyramid_ms = ms_since(t);
@@ -109,6 +109,15 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     if (overlaps[i]) result.pairs.push_back(candidates[i]);
   }
   result.stats.pairs = static_cast<int>(result.pairs.size());
+  scratch.masks.resize(result.pairs.size());
+  parallel_for(0, static_cast<int>(result.pairs.size()), [&](int i) {
+    const auto [a, b] = result.pairs[i];
+    compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
+    compute_overlap_mask(views[b][levels], views[a][levels], 2 * d_r, scratch.masks[i].second);
+  }, options.num_threads);
+  auto masks_of = [&](const std::pair<int, int>& pair) -> const auto& {
+    return scratch.masks[std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin()];
+  };
   const auto rounds = schedule_pairs(result.pairs);
   result.stats.overlap_ms = ms_since(t);
 
@@ -133,8 +142,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (const auto& round : rounds) {
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const auto [a, b] = round[i];
-        remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, scratch.cameras[a].frbr,
-                                    scratch.cameras[b].frbr);
+        const auto& masks = masks_of(round[i]);
+        remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, masks.first, masks.second,
+                                    scratch.cameras[a].frbr, scratch.cameras[b].frbr);
       }, options.num_threads);
     }
   }
@@ -159,6 +169,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       const size_t pair_index = std::find(result.pairs.begin(), result.pairs.end(), round[i]) - result.pairs.begin();
       seams[pair_index] = clip_and_stitch(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                                           cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
+                                          scratch.masks[pair_index].first, scratch.masks[pair_index].second,
                                           scratch.cameras[a].seam, scratch.cameras[b].seam);
     }, options.num_threads);
   }
@@ -185,21 +196,37 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   for (size_t i = 0; i < seams.size(); ++i) {
     for (const PixelVertex& v : seams[i].vertices) seam_global[i].push_back(vertex(v.camera, v.pixel));
   }
-  std::vector<char> is_seam_vertex(mesh.positions.size(), 0);
+  // Directed edges between seam vertices, per seam vertex: its outgoing edges' far ends (a
+  // vertex has a handful). Other vertices are -1 in seam_slot.
+  std::vector<int>& seam_slot = scratch.seam_slot;
+  std::vector<std::vector<int>>& outgoing = scratch.outgoing;
+  seam_slot.assign(mesh.positions.size(), -1);
+  int seam_vertices = 0;
   for (const auto& ids : seam_global) {
-    for (int id : ids) is_seam_vertex[id] = 1;
+    for (int id : ids) {
+      if (seam_slot[id] < 0) seam_slot[id] = seam_vertices++;
+    }
   }
-  std::unordered_set<std::uint64_t> seam_edges;
-  auto directed = [](int from, int to) { return (static_cast<std::uint64_t>(from) << 32) | static_cast<std::uint32_t>(to); };
+  if (static_cast<int>(outgoing.size()) < seam_vertices) outgoing.resize(seam_vertices);
+  for (int i = 0; i < seam_vertices; ++i) outgoing[i].clear();
+  auto slot = [&](int id) { return id < static_cast<int>(seam_slot.size()) ? seam_slot[id] : -1; };
+  auto has_edge = [&](int from, int to) {
+    const int s_from = slot(from);
+    if (s_from < 0 || slot(to) < 0) return false;
+    const std::vector<int>& ends = outgoing[s_from];
+    return std::find(ends.begin(), ends.end(), to) != ends.end();
+  };
   auto note_edges = [&](const Eigen::Vector3i& tri) {
     for (int k = 0; k < 3; ++k) {
       const int from = tri[k], to = tri[(k + 1) % 3];
-      if (from < static_cast<int>(is_seam_vertex.size()) && to < static_cast<int>(is_seam_vertex.size()) && is_seam_vertex[from] &&
-          is_seam_vertex[to]) {
-        seam_edges.insert(directed(from, to));
-      }
+      if (slot(from) >= 0 && slot(to) >= 0) outgoing[slot(from)].push_back(to);
     }
   };
+  int kept = 0;
+  for (int c : active) kept += cameras[c].mesh->triangle_count();
+  size_t seam_triangles = 0;
+  for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
+  mesh.triangles.reserve(kept + seam_triangles);
   for (int c : active) {
     for_each_triangle(*cameras[c].mesh, [&](const int* p) {
       mesh.triangles.emplace_back(vertex(c, p[0]), vertex(c, p[1]), vertex(c, p[2]));
@@ -209,8 +236,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   for (size_t i = 0; i < seams.size(); ++i) {
     for (const Eigen::Vector3i& local : seams[i].triangles) {
       const Eigen::Vector3i tri(seam_global[i][local[0]], seam_global[i][local[1]], seam_global[i][local[2]]);
-      if (seam_edges.count(directed(tri[0], tri[1])) || seam_edges.count(directed(tri[1], tri[2])) ||
-          seam_edges.count(directed(tri[2], tri[0]))) {
+      if (has_edge(tri[0], tri[1]) || has_edge(tri[1], tri[2]) || has_edge(tri[2], tri[0])) {
         ++result.stats.seam_rejected;
         continue;
       }

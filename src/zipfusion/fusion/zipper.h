@@ -71,6 +71,11 @@ struct ZipperScratch {
     std::vector<int> vertex_of_pixel;
   };
   std::vector<Camera> cameras;
+  // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
+  // coarsest level, and the reverse.
+  std::vector<std::pair<OverlapMask, OverlapMask>> masks;
+  std::vector<int> seam_slot;                // assembly: per output vertex, its index among seam vertices or -1
+  std::vector<std::vector<int>> outgoing;    // assembly: per seam vertex, far ends of its directed edges
 };
 
 ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch);

@@ -11,7 +11,6 @@
 
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/core/rasterizer.h"
-#include "zipfusion/io/mesh_io.h"
 
 namespace zipfusion {
 namespace {
@@ -122,7 +121,6 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
   const ZipperResult result = scene.zipper();
   ASSERT_EQ(result.pairs.size(), 1u);
   const TriangleMesh& mesh = result.mesh;
-  if (getenv("ZF_DUMP")) { write_mesh("/tmp/plane.ply", mesh); printf("added %d rejected %d\n", result.stats.seam_added, result.stats.seam_rejected); }
   // Interior sample points of the wall (5 cm from its border): no holes.
   TriangleMesh interior;
   for (const Eigen::Vector3f& p : wall.positions) {

@@ -54,7 +54,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     extract_foreground(frames.cameras[c].depth, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
   });
   if (options_.bilateral) {
-    stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, 1); });
+    stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });
   }
   stage(result.times.triangulate_ms, [&](int c, CameraState& s) {
     const Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;

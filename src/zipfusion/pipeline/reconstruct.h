@@ -72,6 +72,7 @@ class FrameReconstructor {
   struct CameraState {
     Image<float> foreground;
     Image<float> filtered;
+    Image<float> filter_scratch;
     DepthMesh mesh;
     std::vector<Rgb8> colors;
   };

@@ -69,8 +69,11 @@ std::string format_frame_pattern(const FramePattern& p, int frame) {
   return p.prefix + number + p.suffix;
 }
 
-Intrinsics kinect_depth_intrinsics() { return {.width = 640, .height = 480, .fx = 580, .fy = 580, .cx = 319.5, .cy = 239.5}; }
-Intrinsics kinect_color_intrinsics() { return {.width = 640, .height = 480, .fx = 525, .fy = 525, .cx = 319.5, .cy = 239.5}; }
+// A Kinect v1 camera's intrinsics (focal length at 640×480) for an image of width × height.
+Intrinsics kinect_intrinsics(double focal_at_640, int width, int height) {
+  const double f = focal_at_640 * width / 640.0;
+  return {.width = width, .height = height, .fx = f, .fy = f, .cx = (width - 1) / 2.0, .cy = (height - 1) / 2.0};
+}
 
 Eigen::Vector3d random_unit_vector(std::mt19937_64& rng) {
   std::normal_distribution<double> normal;
@@ -108,6 +111,7 @@ void SynthOptions::validate() const {
   if (!(radius_m > 0.5 && radius_m < 20)) fail("radius", "must be in (0.5, 20) metres");
   if (!(camera_height_m > 0 && camera_height_m < 10)) fail("height", "must be in (0, 10) metres");
   if (!(target_height_m >= 0 && target_height_m < 10)) fail("target-height", "must be in [0, 10) metres");
+  if (depth_width < 32 || depth_width > 4096 || depth_height < 24 || depth_height > 4096) fail("resolution", "must be within 32x24 .. 4096x4096");
   if (color_extension != ".jpg" && color_extension != ".png") fail("color-format", "must be jpg or png");
   if (jpeg_quality < 1 || jpeg_quality > 100) fail("jpeg-quality", "must be in [1, 100]");
   if (!(color_noise_sigma >= 0 && color_noise_sigma < 100)) fail("color-noise", "must be in [0, 100) levels");
@@ -141,8 +145,8 @@ Rig make_ring_rig(const SynthOptions& options) {
     const double angle = std::numbers::pi / 4 + 2 * std::numbers::pi * k / options.cameras;
     const Eigen::Vector3d eye(options.radius_m * std::cos(angle), options.radius_m * std::sin(angle), options.camera_height_m);
     rig.cameras.push_back({.name = "cam" + std::to_string(k),
-                           .depth_intrinsics = kinect_depth_intrinsics(),
-                           .color_intrinsics = kinect_color_intrinsics(),
+                           .depth_intrinsics = kinect_intrinsics(580, options.depth_width, options.depth_height),
+                           .color_intrinsics = kinect_intrinsics(525, options.depth_width, options.depth_height),
                            .color_from_depth = color_from_depth,
                            .world_from_depth = look_at(eye, target)});
   }

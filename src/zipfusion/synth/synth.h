@@ -23,6 +23,8 @@ struct SynthOptions {
   double radius_m = 2.5;            // circle radius, metres
   double camera_height_m = 1.3;     // camera height above the floor, metres
   double target_height_m = 0.9;     // height of the point every camera looks at, metres
+  int depth_width = 640;            // image size; the Kinect's field of view is kept (focal lengths
+  int depth_height = 480;           // scale with the width), colour scales alike
   std::string subject_pattern;      // printf pattern of a .ply/.obj sequence ("dir/%06d.ply"); empty = built-in human
   HumanOptions human;
   KinectNoiseOptions noise;
@@ -40,7 +42,7 @@ struct SynthOptions {
 
 //! The rig the options describe, with true poses: camera k at angle 45° + k·360°/N on the circle,
 //! looking at (0, 0, target_height_m); Kinect v1 intrinsics (depth 640×480 f 580, colour 640×480 f
-//! 525 2.5 cm to the depth camera's +x).
+//! 525 2.5 cm to the depth camera's +x), both scaled to depth_width × depth_height.
 Rig make_ring_rig(const SynthOptions& options);
 
 //! The rig as written to rig.json: poses of cameras 1..N−1 each moved by exactly

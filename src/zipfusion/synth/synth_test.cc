@@ -110,6 +110,30 @@ TEST(Synth, IdealDepthLiesOnTheTrueSurface) {
   }
 }
 
+TEST(Synth, ResolutionKeepsTheFieldOfViewAndScalesThePixelCount) {
+  // The subject covers the same share of the image at every resolution; its pixels scale with
+  // the image area, and the depth stays on the true surface.
+  SynthOptions options = small_options();
+  options.noise = KinectNoiseOptions::none();
+  const TriangleMesh subject = subject_mesh(options, 0);
+  std::vector<double> subject_pixels;
+  for (auto [width, height] : {std::pair{320, 240}, {640, 480}, {1280, 960}}) {
+    options.depth_width = width;
+    options.depth_height = height;
+    Rig rig = make_ring_rig(options);
+    rig.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}};
+    EXPECT_NEAR(rig.cameras[0].depth_intrinsics.fx / width, 580.0 / 640, 1e-12);
+    const SyntheticView view = render_view(subject, rig, 0, 0, options);
+    ASSERT_EQ(view.depth.width, width);
+    ASSERT_EQ(view.color.height, height);
+    const DepthError error = depth_error(view.depth, rig, 0, subject);
+    EXPECT_LT(median(error.distance_m), 0.0005) << width;
+    subject_pixels.push_back(error.subject_pixels);
+  }
+  EXPECT_NEAR(subject_pixels[1] / subject_pixels[0], 4.0, 0.2);
+  EXPECT_NEAR(subject_pixels[2] / subject_pixels[1], 4.0, 0.2);
+}
+
 TEST(Synth, KinectDepthAgreesWithTheTruthWithinTheNoiseModel) {
   SynthOptions options = small_options();
   const Rig rig = [&] { Rig r = make_ring_rig(options); r.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}}; return r; }();

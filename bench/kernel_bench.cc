@@ -1,0 +1,119 @@
+// Micro-benchmarks of the per-frame kernels on one real frame set (samba-4cam frame 0, true
+// poses), one camera for the per-camera kernels: Google Benchmark, single thread unless named.
+// Run from anywhere: the capture is found through ZF_SOURCE_DIR.
+
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+
+#include "zipfusion/depth/bilateral.h"
+#include "zipfusion/depth/color_lookup.h"
+#include "zipfusion/depth/foreground.h"
+#include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/fusion/zipper.h"
+#include "zipfusion/io/capture.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Frame {
+  Rig rig;
+  FrameSet frames;
+  std::vector<Image<float>> foreground, filtered;
+  std::vector<DepthMesh> meshes;
+  std::vector<std::vector<Rgb8>> colors;
+};
+
+const Frame& frame() {
+  static const Frame f = [] {
+    const Capture capture = Capture::open(fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
+    Frame out;
+    out.rig = capture.ground_truth_rig().value_or(capture.rig());
+    out.rig.volume = capture.rig().volume;
+    out.frames = capture.load_frame(0);
+    const int n = capture.camera_count();
+    out.foreground.resize(n);
+    out.filtered.resize(n);
+    out.meshes.resize(n);
+    out.colors.resize(n);
+    const BilateralKernel kernel(BilateralOptions{});
+    for (int c = 0; c < n; ++c) {
+      extract_foreground(out.frames.cameras[c].depth, out.rig.depth_unit_m, out.rig.cameras[c], out.rig.volume, {}, out.foreground[c]);
+      bilateral_filter(out.foreground[c], kernel, out.filtered[c]);
+      triangulate_sdc(out.foreground[c], out.rig.cameras[c].depth_intrinsics, out.rig.cameras[c].world_from_depth.cast<float>(), {},
+                      out.meshes[c]);
+      lookup_colors(out.meshes[c], out.rig.cameras[c], &out.frames.cameras[c].color, out.colors[c]);
+    }
+    return out;
+  }();
+  return f;
+}
+
+void BM_Foreground(benchmark::State& state) {
+  const Frame& f = frame();
+  Image<float> out;
+  for (auto _ : state) extract_foreground(f.frames.cameras[0].depth, f.rig.depth_unit_m, f.rig.cameras[0], f.rig.volume, {}, out);
+}
+BENCHMARK(BM_Foreground)->Unit(benchmark::kMillisecond);
+
+void BM_BilateralFilter(benchmark::State& state) {
+  const Frame& f = frame();
+  const BilateralKernel kernel(BilateralOptions{});
+  Image<float> out;
+  for (auto _ : state) bilateral_filter(f.foreground[0], kernel, out);
+}
+BENCHMARK(BM_BilateralFilter)->Unit(benchmark::kMillisecond);
+
+void BM_TriangulateSdc(benchmark::State& state) {
+  const Frame& f = frame();
+  DepthMesh mesh;
+  for (auto _ : state) {
+    triangulate_sdc(f.foreground[0], f.rig.cameras[0].depth_intrinsics, f.rig.cameras[0].world_from_depth.cast<float>(), {}, mesh);
+  }
+}
+BENCHMARK(BM_TriangulateSdc)->Unit(benchmark::kMillisecond);
+
+void BM_LookupColors(benchmark::State& state) {
+  const Frame& f = frame();
+  std::vector<Rgb8> colors;
+  for (auto _ : state) lookup_colors(f.meshes[0], f.rig.cameras[0], &f.frames.cameras[0].color, colors);
+}
+BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
+
+void BM_CoverageDistances(benchmark::State& state) {
+  const Frame& f = frame();
+  std::vector<float> interior, exterior;
+  for (auto _ : state) compute_coverage_distances(f.meshes[0], 3, interior, exterior);
+}
+BENCHMARK(BM_CoverageDistances)->Unit(benchmark::kMillisecond);
+
+void BM_DownsampleMesh(benchmark::State& state) {
+  const Frame& f = frame();
+  DepthMesh coarse;
+  for (auto _ : state) downsample_mesh(f.meshes[0], 2, 0.03f, coarse);
+}
+BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
+
+// All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four cameras; Arg = threads.
+void BM_ZipperFourCameras(benchmark::State& state) {
+  const Frame& f = frame();
+  ZipperScratch scratch;
+  std::vector<DepthMesh> meshes;
+  const ZipperOptions options{.num_threads = static_cast<int>(state.range(0))};
+  for (auto _ : state) {
+    state.PauseTiming();
+    meshes = f.meshes;  // zippering clears bits: start each iteration from the same meshes
+    std::vector<ZipperCamera> cameras;
+    for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.colors[c], &f.rig.cameras[c]});
+    state.ResumeTiming();
+    benchmark::DoNotOptimize(zipper_meshes(cameras, options, scratch));
+  }
+}
+BENCHMARK(BM_ZipperFourCameras)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace zipfusion
+
+BENCHMARK_MAIN();

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Runs every benchmark and writes docs/benchmarks.md from the results (make bench).
+# Raw results (JSON) go to $BENCH_OUT (default out/bench). Needs ../shared/data/samba-4cam.
+set -euo pipefail
+
+BUILD_DIR=${BUILD_DIR:-build}
+OUT=${BENCH_OUT:-out/bench}
+SAMBA=${SAMBA:-../shared/data/samba-4cam}
+FRAMES=${BENCH_FRAMES:-40}
+SOAK=${BENCH_SOAK:-1000}
+SCALE_FRAMES=${BENCH_SCALE_FRAMES:-10}
+ZF=$BUILD_DIR/zipfusion
+mkdir -p "$OUT"
+
+step() { echo "== $*" >&2; }
+
+step "samba-4cam: stages, threads, coarse-to-fine, memory over $SOAK frame sets"
+"$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 3 --soak "$SOAK" --json > "$OUT/samba.json"
+
+step "samba-4cam: quality of each mode (reconstruct + eval)"
+for mode in zipper separate; do
+  for filter in bilateral none; do
+    name="${mode}_${filter}"
+    "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --mode "$mode" --filter "$filter" \
+      --out "$OUT/meshes/$name" > /dev/null
+    "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
+  done
+done
+
+if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
+  step "Open3D TSDF (10 mm, 5 mm) and Poisson, same frames"
+  for voxel in 0.01 0.005; do
+    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" \
+      --out "$OUT/meshes/open3d_$voxel" --json > "$OUT/open3d_$voxel.json"
+    "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_open3d_$voxel.json"
+  done
+fi
+
+step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes"
+for cameras in 2 4 6 8; do
+  capture="$OUT/synth/cameras_$cameras"
+  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras "$cameras" --frames "$SCALE_FRAMES" > /dev/null
+  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_cameras_$cameras.json"
+done
+for size in 320x240 640x480 1280x960; do
+  capture="$OUT/synth/size_$size"
+  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size" > /dev/null
+  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_size_$size.json"
+done
+
+step "kernels (Google Benchmark)"
+"$BUILD_DIR/zf_kernel_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/kernels.json"
+"$BUILD_DIR/zf_micro_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/micro.json"
+
+step "writing docs/benchmarks.md"
+python3 scripts/bench_report.py "$OUT" > docs/benchmarks.md.tmp
+mv docs/benchmarks.md.tmp docs/benchmarks.md
+echo "wrote docs/benchmarks.md (raw results in $OUT)"

@@ -1,0 +1,59 @@
+// End-to-end test of `zipfusion bench` on a small synthetic capture: the report's numbers must be
+// consistent with each other and with what the configurations do.
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_test_util.h"
+
+namespace zipfusion {
+namespace {
+
+class BenchCli : public testing::CliTest {};
+
+TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 3").exit_code, 0);
+  const testing::CommandResult r = run("bench " + capture + " --frames 2 --repeat 2 --soak 3 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["cameras"], 3);
+  EXPECT_EQ(report["frames"], 2);
+  EXPECT_GT(report["decode_ms"]["median"].get<double>(), 0);
+  std::map<std::string, nlohmann::json> configs;
+  for (const auto& c : report["configs"]) configs[c["name"]] = c;
+  ASSERT_EQ(configs.size(), 7u);
+  for (const auto& [name, c] : configs) {
+    SCOPED_TRACE(name);
+    const double total = c["ms"]["total"]["median"];
+    EXPECT_GT(total, 0);
+    EXPECT_NEAR(c["fps"].get<double>(), 1000.0 / total, 1e-6);
+    for (const auto& [stage, t] : c["ms"].items()) {
+      EXPECT_LE(t["median"].get<double>(), t["p95"].get<double>()) << stage;
+      EXPECT_LE(t["median"].get<double>(), c["ms"]["total"]["p95"].get<double>()) << stage;
+    }
+  }
+  // Only the filtered configurations filter; only the zipper ones zipper, with fewer triangles.
+  EXPECT_GT(configs["zipper+filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_EQ(configs["zipper"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_EQ(configs["separate"]["ms"]["clipping"]["median"].get<double>(), 0);
+  EXPECT_GT(configs["zipper"]["ms"]["clipping"]["median"].get<double>(), 0);
+  EXPECT_LT(configs["zipper"]["triangles"].get<double>(), configs["separate"]["triangles"].get<double>());
+  EXPECT_EQ(configs["zipper 1 thread"]["triangles"], configs["zipper"]["triangles"]);
+  EXPECT_GT(configs["zipper+separable filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_EQ(report["soak"]["frames"], 3);
+  EXPECT_GT(report["peak_rss_mb"].get<double>(), report["soak"]["rss_mb_at_end"].get<double>() * 0.5);
+}
+
+TEST_F(BenchCli, BadArgumentsGiveOneLineAndExitTwo) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 1 --cameras 2").exit_code, 0);
+  const testing::CommandResult r = run("bench " + capture + " --repeat 0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(testing::line_count(r.err), 1);
+  EXPECT_NE(r.err.find("--repeat"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace zipfusion

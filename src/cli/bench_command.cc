@@ -1,0 +1,229 @@
+// zipfusion bench: per-stage timings of the reconstruction on a capture, in the style of the
+// paper's Tables III–V, with the configurations side by side, frame rate and memory.
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <map>
+
+#include "cli/commands.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/core/parallel.h"
+#include "zipfusion/pipeline/pipeline.h"
+
+namespace zipfusion::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct BenchArgs {
+  std::string capture;
+  std::string rig;
+  int frames = 30;
+  int repeat = 3;
+  int soak = 0;
+  int threads = 0;
+  bool json = false;
+};
+
+struct Percentiles {
+  double median = 0;
+  double p95 = 0;
+};
+
+Percentiles percentiles(std::vector<double> values) {
+  if (values.empty()) return {};
+  std::sort(values.begin(), values.end());
+  auto at = [&](double q) { return values[std::min(values.size() - 1, static_cast<size_t>(q * static_cast<double>(values.size())))]; };
+  return {at(0.5), at(0.95)};
+}
+
+// The stages of StageTimes, in pipeline order, with the paper's names.
+const std::vector<std::pair<std::string, double StageTimes::*>> kStages = {
+    {"foreground", &StageTimes::foreground_ms}, {"filter", &StageTimes::filter_ms},         {"triangulate", &StageTimes::triangulate_ms},
+    {"color", &StageTimes::color_ms},           {"overlap", &StageTimes::overlap_ms},       {"redundancy", &StageTimes::redundancy_ms},
+    {"clipping", &StageTimes::clipping_ms},     {"assemble", &StageTimes::assemble_ms},     {"total", &StageTimes::total_ms}};
+
+struct BenchConfig {
+  std::string name;
+  ReconstructOptions options;
+};
+
+struct ConfigResult {
+  std::string name;
+  std::map<std::string, Percentiles> stages;
+  double triangles = 0;
+  double fps = 0;
+};
+
+double resident_mb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return static_cast<double>(resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
+
+double peak_resident_mb() {
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // kilobytes on Linux
+}
+
+std::string cpu_model() {
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(cpuinfo, line)) {
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  }
+  return "unknown CPU";
+}
+
+ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::vector<FrameSet>& frames, int repeat) {
+  FrameReconstructor reconstructor(rig, config.options);
+  reconstructor.reconstruct(frames.front());  // buffers sized: steady state
+  std::map<std::string, std::vector<double>> samples;
+  std::vector<double> triangles;
+  for (int pass = 0; pass < repeat; ++pass) {
+    for (const FrameSet& set : frames) {
+      const FrameResult result = reconstructor.reconstruct(set);
+      for (const auto& [name, field] : kStages) samples[name].push_back(result.times.*field);
+      triangles.push_back(static_cast<double>(result.mesh.triangle_count()));
+    }
+  }
+  ConfigResult out{.name = config.name};
+  for (const auto& [name, values] : samples) out.stages[name] = percentiles(values);
+  out.triangles = percentiles(triangles).median;
+  out.fps = out.stages["total"].median > 0 ? 1000.0 / out.stages["total"].median : 0;
+  return out;
+}
+
+void run_bench(const BenchArgs& args) {
+  if (args.frames < 1) throw InvalidInput("--frames: must be at least 1");
+  if (args.repeat < 1) throw InvalidInput("--repeat: must be at least 1");
+  const Capture capture = Capture::open(args.capture);
+  Rig rig = capture.rig();
+  if (!args.rig.empty()) {
+    const Rig other = read_rig(args.rig);
+    if (other.cameras.size() != rig.cameras.size()) throw InvalidInput(args.rig + ": cameras: not the capture's cameras");
+    for (size_t c = 0; c < rig.cameras.size(); ++c) rig.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
+  }
+  const int count = std::min(args.frames, capture.frame_count());
+
+  // Decoding, separately from reconstruction: each frame set's cameras in parallel.
+  std::vector<FrameSet> frames;
+  std::vector<double> decode_ms;
+  const FrameSource source = capture_source(capture, 0, count);
+  double ms = 0;
+  while (std::optional<FrameSet> set = source(ms)) {
+    frames.push_back(std::move(*set));
+    decode_ms.push_back(ms);
+    show_progress("decode", static_cast<int>(frames.size()), count);
+  }
+
+  auto options = [&](ReconstructMode mode, bool bilateral) {
+    ReconstructOptions o;
+    o.mode = mode;
+    o.bilateral = bilateral;
+    o.num_threads = args.threads;
+    return o;
+  };
+  std::vector<BenchConfig> configs = {
+      {"zipper+filter", options(ReconstructMode::kZipper, true)},
+      {"zipper", options(ReconstructMode::kZipper, false)},
+      {"separate+filter", options(ReconstructMode::kSeparate, true)},
+      {"separate", options(ReconstructMode::kSeparate, false)},
+  };
+  configs.push_back({"zipper+separable filter", options(ReconstructMode::kZipper, true)});
+  configs.back().options.filter.separable = true;
+  configs.push_back({"zipper 1 thread", options(ReconstructMode::kZipper, false)});
+  configs.back().options.num_threads = 1;
+  configs.push_back({"zipper no coarse-to-fine", options(ReconstructMode::kZipper, false)});
+  configs.back().options.zipper.coarse_levels = 0;
+
+  std::vector<ConfigResult> results;
+  for (size_t i = 0; i < configs.size(); ++i) {
+    results.push_back(run_config(configs[i], rig, frames, args.repeat));
+    show_progress("bench", static_cast<int>(i + 1), static_cast<int>(configs.size()));
+  }
+
+  // Memory over a long run: the resident size must not grow once buffers are sized.
+  nlohmann::ordered_json soak = nullptr;
+  if (args.soak > 0) {
+    FrameReconstructor reconstructor(rig, configs[0].options);
+    double at_100 = 0;
+    for (int i = 0; i < args.soak; ++i) {
+      const FrameResult result = reconstructor.reconstruct(frames[i % frames.size()]);
+      if (i + 1 == std::min(100, args.soak)) at_100 = resident_mb();
+      if ((i + 1) % 50 == 0) show_progress("soak", i + 1, args.soak);
+    }
+    soak = {{"frames", args.soak}, {"rss_mb_at_100", at_100}, {"rss_mb_at_end", resident_mb()}};
+  }
+
+  const Percentiles decode = percentiles(decode_ms);
+  nlohmann::ordered_json report;
+  report["machine"] = {{"cpu", cpu_model()}, {"hardware_threads", hardware_threads()}};
+  report["capture"] = args.capture;
+  report["cameras"] = capture.camera_count();
+  report["depth_size"] = std::to_string(rig.cameras[0].depth_intrinsics.width) + "x" + std::to_string(rig.cameras[0].depth_intrinsics.height);
+  report["frames"] = count;
+  report["repeat"] = args.repeat;
+  report["decode_ms"] = {{"median", decode.median}, {"p95", decode.p95}};
+  for (const ConfigResult& r : results) {
+    nlohmann::ordered_json stages;
+    for (const auto& [name, field] : kStages) stages[name] = {{"median", r.stages.at(name).median}, {"p95", r.stages.at(name).p95}};
+    report["configs"].push_back({{"name", r.name}, {"ms", stages}, {"fps", r.fps}, {"triangles", r.triangles}});
+  }
+  report["peak_rss_mb"] = peak_resident_mb();
+  report["soak"] = soak;
+
+  if (args.json) {
+    std::cout << report.dump(2) << "\n";
+    return;
+  }
+  std::printf("%s, %d hardware threads\n%s: %d cameras, depth %s, %d frame sets x %d passes; decode %.1f ms median (%.1f p95) per frame set\n\n",
+              cpu_model().c_str(), hardware_threads(), args.capture.c_str(), capture.camera_count(), report["depth_size"].get<std::string>().c_str(),
+              count, args.repeat, decode.median, decode.p95);
+  std::printf("%-12s", "ms median/p95");
+  for (const ConfigResult& r : results) std::printf(" %17s", r.name.substr(0, 17).c_str());
+  std::printf("\n");
+  for (const auto& [name, field] : kStages) {
+    std::printf("%-12s", name.c_str());
+    for (const ConfigResult& r : results) std::printf("       %5.1f/%5.1f", r.stages.at(name).median, r.stages.at(name).p95);
+    std::printf("\n");
+  }
+  std::printf("%-12s", "fps");
+  for (const ConfigResult& r : results) std::printf(" %17.1f", r.fps);
+  std::printf("\n%-12s", "triangles");
+  for (const ConfigResult& r : results) std::printf(" %17.0f", r.triangles);
+  std::printf("\n\npeak resident memory %.0f MB", peak_resident_mb());
+  if (args.soak > 0) std::printf("; resident after 100 frame sets %.0f MB, after %d %.0f MB", soak["rss_mb_at_100"].get<double>(), args.soak,
+                                 soak["rss_mb_at_end"].get<double>());
+  std::printf("\n");
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+  auto args = std::make_shared<BenchArgs>();
+  CLI::App* cmd = app.add_subcommand("bench", "Time every stage of the reconstruction on a capture (median and 95th percentile)");
+  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  cmd->add_option("--frames", args->frames, "Frame sets to load (the first N), decoded once")->capture_default_str();
+  cmd->add_option("--repeat", args->repeat, "Passes over the frame sets per configuration")->capture_default_str();
+  cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--soak", args->soak, "Also reconstruct this many frame sets in a row and report resident memory at 100 and at the end")
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_flag("--json", args->json, "Print JSON instead of a table");
+  cmd->callback([args] { run_bench(*args); });
+}
+
+}  // namespace zipfusion::cli

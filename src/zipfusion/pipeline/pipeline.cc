@@ -1,0 +1,106 @@
+#include "zipfusion/pipeline/pipeline.h"
+
+#include <chrono>
+#include <exception>
+#include <memory>
+#include <thread>
+
+#include "zipfusion/core/parallel.h"
+
+namespace zipfusion {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+struct DecodedFrame {
+  FrameSet frames;
+  double decode_ms = 0;
+};
+
+// The first exception of any stage; later ones are consequences (closed queues) and dropped.
+class FirstError {
+ public:
+  void set(std::exception_ptr error) {
+    std::lock_guard lock(mutex_);
+    if (!error_) error_ = error;
+  }
+  void rethrow() const {
+    if (error_) std::rethrow_exception(error_);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::exception_ptr error_;
+};
+
+}  // namespace
+
+FrameSource capture_source(const Capture& capture, int begin, int end) {
+  auto next = std::make_shared<int>(begin);
+  return [&capture, next, end](double& decode_ms) -> std::optional<FrameSet> {
+    if (*next >= end) return std::nullopt;
+    const Clock::time_point start = Clock::now();
+    FrameSet set;
+    set.index = (*next)++;
+    set.cameras.resize(capture.camera_count());
+    parallel_for(0, capture.camera_count(), [&](int c) { set.cameras[c] = capture.load_camera_frame(set.index, c); });
+    decode_ms = ms_since(start);
+    return set;
+  };
+}
+
+PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& reconstructor, const std::function<void(PipelineFrame&)>& sink,
+                           const PipelineOptions& options) {
+  BoundedQueue<DecodedFrame> decoded(options.queue_depth, options.source_policy);
+  BoundedQueue<PipelineFrame> reconstructed(options.queue_depth, QueuePolicy::kBlock);
+  FirstError error;
+  PipelineStats stats;
+  const Clock::time_point start = Clock::now();
+
+  std::jthread source_thread([&] {
+    try {
+      while (true) {
+        DecodedFrame item;
+        std::optional<FrameSet> frames = source(item.decode_ms);
+        if (!frames) break;
+        item.frames = std::move(*frames);
+        if (!decoded.push(std::move(item))) break;  // closed: a later stage failed
+      }
+    } catch (...) {
+      error.set(std::current_exception());
+      reconstructed.close();
+    }
+    decoded.close();
+  });
+  std::jthread sink_thread([&] {
+    try {
+      while (std::optional<PipelineFrame> frame = reconstructed.pop()) sink(*frame);
+    } catch (...) {
+      error.set(std::current_exception());
+      decoded.close();  // unblocks the source; the reconstruction loop sees the closed queue
+      reconstructed.close();
+    }
+  });
+
+  try {
+    while (std::optional<DecodedFrame> item = decoded.pop()) {
+      if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
+      PipelineFrame frame{.index = item->frames.index, .decode_ms = item->decode_ms, .result = reconstructor.reconstruct(item->frames)};
+      ++stats.frames;
+      if (!reconstructed.push(std::move(frame))) break;
+    }
+  } catch (...) {
+    error.set(std::current_exception());
+    decoded.close();
+  }
+  reconstructed.close();
+  source_thread.join();
+  sink_thread.join();
+  stats.dropped = decoded.dropped();
+  stats.wall_ms = ms_since(start);
+  error.rethrow();
+  return stats;
+}
+
+}  // namespace zipfusion

@@ -1,0 +1,119 @@
+#pragma once
+//! \file
+//! The frame pipeline: a source thread decodes frame sets, the calling thread reconstructs them
+//! (each stage over all cameras in parallel), a sink thread consumes the meshes (writes them,
+//! later streams them). Stages are joined by bounded queues, so a slow sink holds back the
+//! reconstruction and a slow reconstruction holds back decoding, with memory bounded by the
+//! queue depth.
+//!
+//! Offline (a capture on disk) every frame is processed: a full queue makes its producer wait.
+//! Live (a device that will not wait) the source queue drops its oldest frame set instead, so the
+//! pipeline shows the newest frames and never falls behind; the drops are counted in the stats.
+//!
+//! Thread safety: run_pipeline() owns its threads and joins them before it returns; the source is
+//! called from one thread, the sink from another.
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <optional>
+
+#include "zipfusion/io/capture.h"
+#include "zipfusion/pipeline/reconstruct.h"
+
+namespace zipfusion {
+
+enum class QueuePolicy {
+  kBlock,       // push waits for room: nothing is lost (offline)
+  kDropOldest,  // push discards the oldest item: the newest is never late (live)
+};
+
+//! A bounded multi-producer, multi-consumer queue that can be closed.
+template <typename T>
+class BoundedQueue {
+ public:
+  BoundedQueue(int capacity, QueuePolicy policy) : capacity_(capacity < 1 ? 1 : capacity), policy_(policy) {}
+
+  //! Adds an item; false when the queue was closed (the item is dropped).
+  bool push(T item) {
+    std::unique_lock lock(mutex_);
+    if (policy_ == QueuePolicy::kBlock) not_full_.wait(lock, [&] { return closed_ || static_cast<int>(items_.size()) < capacity_; });
+    if (closed_) return false;
+    if (static_cast<int>(items_.size()) >= capacity_) {  // kDropOldest
+      items_.pop_front();
+      ++dropped_;
+    }
+    items_.push_back(std::move(item));
+    not_empty_.notify_one();
+    return true;
+  }
+
+  //! The oldest item; empty once the queue is closed and drained.
+  std::optional<T> pop() {
+    std::unique_lock lock(mutex_);
+    not_empty_.wait(lock, [&] { return closed_ || !items_.empty(); });
+    if (items_.empty()) return std::nullopt;
+    T item = std::move(items_.front());
+    items_.pop_front();
+    not_full_.notify_one();
+    return item;
+  }
+
+  //! No more pushes; pop() returns what is left, then nothing.
+  void close() {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+    not_empty_.notify_all();
+    not_full_.notify_all();
+  }
+
+  long dropped() const {
+    std::lock_guard lock(mutex_);
+    return dropped_;
+  }
+
+ private:
+  const int capacity_;
+  const QueuePolicy policy_;
+  mutable std::mutex mutex_;
+  std::condition_variable not_empty_, not_full_;
+  std::deque<T> items_;
+  bool closed_ = false;
+  long dropped_ = 0;
+};
+
+//! Where frame sets come from: returns the next one, or nothing at the end of the stream.
+//! `decode_ms` receives the time spent decoding it.
+using FrameSource = std::function<std::optional<FrameSet>(double& decode_ms)>;
+
+//! A source over frames [begin, end) of a capture; each frame set's cameras decode in parallel.
+FrameSource capture_source(const Capture& capture, int begin, int end);
+
+//! One reconstructed frame set, as the sink sees it.
+struct PipelineFrame {
+  int index = 0;
+  double decode_ms = 0;
+  FrameResult result;
+};
+
+struct PipelineOptions {
+  int queue_depth = 2;  // frame sets waiting between two stages
+  QueuePolicy source_policy = QueuePolicy::kBlock;
+  //! Called on the reconstruction thread before each frame set (e.g. to swap in poses refined by
+  //! BackgroundRegistration and offer it the frame set); empty = nothing. Must not block.
+  std::function<void(const FrameSet&, FrameReconstructor&)> before_reconstruct;
+};
+
+struct PipelineStats {
+  int frames = 0;          // frame sets reconstructed
+  long dropped = 0;        // frame sets the source queue discarded (live only)
+  double wall_ms = 0;      // first decode to last sink call
+};
+
+//! Runs source → reconstructor → sink until the source ends. An exception in any stage stops the
+//! pipeline and is rethrown here (the first one).
+PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& reconstructor, const std::function<void(PipelineFrame&)>& sink,
+                           const PipelineOptions& options = {});
+
+}  // namespace zipfusion

@@ -1,0 +1,101 @@
+#include "zipfusion/pipeline/pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <thread>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/synth/synth.h"
+
+namespace zipfusion {
+namespace {
+
+TEST(BoundedQueue, BlockingQueueLosesNothingAndKeepsOrder) {
+  BoundedQueue<int> queue(2, QueuePolicy::kBlock);
+  std::jthread producer([&] {
+    for (int i = 0; i < 1000; ++i) queue.push(i);
+    queue.close();
+  });
+  int expected = 0;
+  while (std::optional<int> item = queue.pop()) EXPECT_EQ(*item, expected++);
+  EXPECT_EQ(expected, 1000);
+  EXPECT_EQ(queue.dropped(), 0);
+}
+
+TEST(BoundedQueue, LiveQueueDropsTheOldest) {
+  BoundedQueue<int> queue(3, QueuePolicy::kDropOldest);
+  for (int i = 0; i < 10; ++i) EXPECT_TRUE(queue.push(i));  // never waits
+  EXPECT_EQ(queue.dropped(), 7);
+  queue.close();
+  EXPECT_FALSE(queue.push(10));
+  for (int expected : {7, 8, 9}) EXPECT_EQ(queue.pop(), expected);
+  EXPECT_EQ(queue.pop(), std::nullopt);
+}
+
+// Frame sets without depth: the pipeline's plumbing, not the reconstruction, is under test.
+FrameSource empty_frames(int count, int cameras, std::atomic<int>* produced = nullptr) {
+  auto next = std::make_shared<int>(0);
+  return [=](double& decode_ms) -> std::optional<FrameSet> {
+    if (*next >= count) return std::nullopt;
+    decode_ms = 0;
+    if (produced) ++*produced;
+    FrameSet set;
+    set.index = (*next)++;
+    set.cameras.resize(cameras);
+    return set;
+  };
+}
+
+class PipelineTest : public ::testing::Test {
+ protected:
+  Rig rig = make_ring_rig(SynthOptions{.cameras = 3});
+  FrameReconstructor reconstructor{rig, {}};
+};
+
+TEST_F(PipelineTest, OfflineDeliversEveryFrameInOrder) {
+  std::vector<int> seen;
+  const PipelineStats stats = run_pipeline(empty_frames(50, 3), reconstructor, [&](PipelineFrame& frame) {
+    seen.push_back(frame.index);
+    EXPECT_EQ(frame.result.cameras_used, 0);
+  });
+  ASSERT_EQ(seen.size(), 50u);
+  for (int i = 0; i < 50; ++i) EXPECT_EQ(seen[i], i);
+  EXPECT_EQ(stats.frames, 50);
+  EXPECT_EQ(stats.dropped, 0);
+}
+
+TEST_F(PipelineTest, SinkErrorStopsThePipelineAndIsRethrown) {
+  std::atomic<int> produced = 0;
+  int sunk = 0;
+  EXPECT_THROW(run_pipeline(empty_frames(1000, 3, &produced), reconstructor,
+                            [&](PipelineFrame& frame) {
+                              if (frame.index == 5) throw std::runtime_error("disk full");
+                              ++sunk;
+                            }),
+               std::runtime_error);
+  EXPECT_EQ(sunk, 5);
+  EXPECT_LT(produced, 20) << "the source kept decoding after the sink failed";
+}
+
+TEST_F(PipelineTest, SourceErrorIsRethrown) {
+  auto failing = [n = 0](double&) mutable -> std::optional<FrameSet> {
+    if (++n == 4) throw InvalidInput("frame 3: corrupt");
+    FrameSet set;
+    set.cameras.resize(3);
+    return set;
+  };
+  EXPECT_THROW(run_pipeline(failing, reconstructor, [](PipelineFrame&) {}), InvalidInput);
+}
+
+TEST_F(PipelineTest, LiveSourceDropsFramesWhenTheSinkIsSlow) {
+  const PipelineStats stats = run_pipeline(
+      empty_frames(200, 3), reconstructor, [](PipelineFrame&) { std::this_thread::sleep_for(std::chrono::milliseconds(2)); },
+      {.queue_depth = 1, .source_policy = QueuePolicy::kDropOldest});
+  EXPECT_GT(stats.dropped, 0);
+  EXPECT_EQ(stats.frames + stats.dropped, 200);
+}
+
+}  // namespace
+}  // namespace zipfusion
