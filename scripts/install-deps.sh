@@ -10,6 +10,7 @@ packages=(
   nlohmann-json3-dev                 # rig.json, stats.json
   libcli11-dev                       # command line
   libcgal-dev                        # 2-D Delaunay triangulation of seams
+  libceres-dev                       # bundle adjustment (calibration)
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
 )
