@@ -7,7 +7,6 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -322,7 +321,7 @@ ExtrinsicResult calibrate_extrinsics(const Rig& rig, const WandObservations& obs
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::DENSE_SCHUR;  // few cameras, many points
     solver.max_num_iterations = options.max_iterations;
-    solver.num_threads = options.num_threads > 0 ? options.num_threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    solver.num_threads = options.num_threads > 0 ? options.num_threads : hardware_threads();
     solver.function_tolerance = 1e-10;
     solver.parameter_tolerance = 1e-10;
     ceres::Solver::Summary summary;

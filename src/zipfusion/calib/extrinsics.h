@@ -15,6 +15,7 @@
 //! Lens distortion, when the rig gives it, is removed from the detections first.
 //! Thread safety: pure functions.
 
+#include <functional>
 #include <string>
 #include <vector>
 
