@@ -11,6 +11,7 @@ packages=(
   libcli11-dev                       # command line
   libcgal-dev                        # 2-D Delaunay triangulation of seams
   libnanoflann-dev                   # k-d trees: closest points for registration
+  libceres-dev                       # bundle adjustment (calibration)
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md

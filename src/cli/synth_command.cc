@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/synth/calib_targets.h"
 #include "zipfusion/synth/synth.h"
 
 namespace zipfusion::cli {
@@ -18,6 +19,11 @@ struct SynthArgs {
   std::string color_format = "jpg";
   std::string noise = "kinect";
   SynthOptions options;
+  bool wand = false, checkerboard = false;
+  WandOptions wand_options;
+  int views = 20;
+  std::string board = "9x6";
+  double square_m = 0.025;
   bool no_shadows = false, no_edge_dropout = false, no_holes = false, no_axial_noise = false, no_quantization = false, no_floor = false;
 };
 
@@ -58,6 +64,34 @@ void run_synth(SynthArgs& args) {
   if (args.no_quantization) options.noise.disparity_quantization = false;
   if (args.no_floor) options.floor = false;
 
+  if (args.wand && args.checkerboard) throw InvalidInput("--wand, --checkerboard: choose one");
+  if (args.checkerboard) {
+    CheckerboardOptions board{.views = args.views, .square_m = args.square_m, .seed = options.seed};
+    char tail = 0;
+    if (std::sscanf(args.board.c_str(), "%dx%d%c", &board.inner_columns, &board.inner_rows, &tail) != 2) {
+      throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + args.board + "\"");
+    }
+    board.intrinsics.width = options.depth_width;
+    board.intrinsics.height = options.depth_height;
+    board.intrinsics.fx *= options.depth_width / 640.0;
+    board.intrinsics.fy *= options.depth_width / 640.0;
+    board.intrinsics.cx *= options.depth_width / 640.0;
+    board.intrinsics.cy *= options.depth_height / 480.0;
+    write_checkerboard_views(args.out, board);
+    const Intrinsics& k = board.intrinsics;
+    std::printf("wrote %s: %d checkerboard views (%dx%d inner corners, %.3f m squares), true fx %.2f fy %.2f cx %.2f cy %.2f in %s/truth.json\n",
+                args.out.c_str(), board.views, board.inner_columns, board.inner_rows, board.square_m, k.fx, k.fy, k.cx, k.cy,
+                args.out.c_str());
+    return;
+  }
+  if (args.wand) {
+    args.wand_options.seed = options.seed;
+    const SynthResult result = write_wand_capture(args.out, options, args.wand_options,
+                                                  [](int done, int total) { show_progress("synth", done, total); });
+    std::cout << "wrote " << args.out << ": wand capture, " << result.rig.cameras.size() << " cameras x " << args.wand_options.frames
+              << " frames, true poses in " << args.out << "/ground_truth\n";
+    return;
+  }
   const SynthResult result = write_synthetic_capture(args.out, options, [](int done, int total) { show_progress("synth", done, total); });
   std::cout << "wrote " << args.out << ": " << result.rig.cameras.size() << " cameras x " << options.frames
             << " frames, ground truth in " << args.out << "/ground_truth\n";
@@ -71,6 +105,15 @@ void add_synth_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("synth", "Write a synthetic multi-Kinect capture of a moving person, with ground truth");
   cmd->add_option("--out", args->out, "Output capture folder (must not exist)")->required();
   cmd->add_option("--frames", o.frames, "Frames to render")->capture_default_str();
+  cmd->add_flag("--wand", args->wand,
+                "Write a calibration capture instead: a red and a green LED waved through the volume in a dim room with "
+                "distractors (colour PNGs, blank depth); --frames sets its length (default 300 with --wand)");
+  cmd->add_option("--led-distance", args->wand_options.led_distance_m, "--wand: distance between the LEDs, metres")->capture_default_str();
+  cmd->add_option("--led-jitter", args->wand_options.led_jitter_px, "--wand: detection noise, pixels (sigma per axis)")->capture_default_str();
+  cmd->add_flag("--checkerboard", args->checkerboard, "Write checkerboard views with known intrinsics (PNGs + truth.json) instead");
+  cmd->add_option("--views", args->views, "--checkerboard: views to render")->capture_default_str();
+  cmd->add_option("--board", args->board, "--checkerboard: inner corners COLUMNSxROWS")->capture_default_str();
+  cmd->add_option("--square", args->square_m, "--checkerboard: square side, metres")->capture_default_str();
   cmd->add_option("--fps", o.fps, "Frames per second")->capture_default_str();
   cmd->add_option("--cameras", o.cameras, "Cameras on the circle")->capture_default_str();
   cmd->add_option("--radius", o.radius_m, "Circle radius, metres")->capture_default_str();
@@ -99,7 +142,10 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--jpeg-quality", o.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
   cmd->add_flag("--no-floor", args->no_floor, "Do not render the floor");
   cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
-  cmd->callback([args] { run_synth(*args); });
+  cmd->callback([args, cmd] {
+    args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
+    run_synth(*args);
+  });
 }
 
 }  // namespace zipfusion::cli

@@ -1,0 +1,72 @@
+// End-to-end test of `zipfusion synth --wand/--checkerboard` and `zipfusion calibrate`: small
+// captures (320x240, 120 wand frames, 8 board views) to stay fast; the full-size targets are in
+// src/zipfusion/calib/*_test.cc.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_test_util.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::CommandResult;
+
+class CalibrateCli : public testing::CliTest {};
+
+TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
+  const fs::path capture = dir_ / "wand";
+  ASSERT_EQ(run("synth --wand --out " + capture.string() + " --frames 120 --cameras 4 --resolution 320x240 --miscalibrate 2,0.05").exit_code, 0);
+  const fs::path out = dir_ / "rig.json";
+  const CommandResult r = run("calibrate extrinsics " + capture.string() + " --led-distance 0.445 --out " + out.string() + " --threads 2");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("cam3"), std::string::npos);
+  EXPECT_NE(r.out.find("after BA"), std::string::npos);
+  const Rig calibrated = read_rig(out);
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  ASSERT_EQ(calibrated.cameras.size(), 4u);
+  for (size_t c = 0; c < 4; ++c) {
+    const Rigid3d& est = calibrated.cameras[c].world_from_depth;
+    const Rigid3d& tru = truth.cameras[c].world_from_depth;
+    // Half the resolution and 120 frames: looser than the library test's 5 mm / 0.2°.
+    EXPECT_LT((est.translation() - tru.translation()).norm(), 0.01) << c;
+    EXPECT_LT(rotation_angle_deg(tru.inverse() * est), 0.4) << c;
+  }
+}
+
+TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
+  const fs::path boards = dir_ / "boards";
+  ASSERT_EQ(run("synth --checkerboard --views 8 --out " + boards.string()).exit_code, 0);
+  const fs::path out = dir_ / "cam.json";
+  const CommandResult r = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board 9x6 --square 0.025 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("view_007.png"), std::string::npos);  // the error per image
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  std::ifstream truth_in(boards / "truth.json");
+  const nlohmann::json truth = nlohmann::json::parse(truth_in);
+  for (const char* key : {"fx", "fy", "cx", "cy"}) {
+    EXPECT_NEAR(j["intrinsics"][key].get<double>(), truth["intrinsics"][key].get<double>(), 0.005 * truth["intrinsics"][key].get<double>()) << key;
+  }
+  EXPECT_EQ(j["views"].size(), 8u);
+}
+
+TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {
+  CommandResult r = run("calibrate intrinsics --images '" + (dir_ / "none").string() + "/*.png' --out " + (dir_ / "c.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--images"), std::string::npos) << r.err;
+  r = run("calibrate intrinsics --images '" + (dir_ / "*.png").string() + "' --board 9by6 --out " + (dir_ / "c.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--board"), std::string::npos) << r.err;
+  r = run("calibrate extrinsics " + dir_.string() + " --led-distance -1 --out " + (dir_ / "r.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("led-distance"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "r.json"));
+}
+
+}  // namespace
+}  // namespace zipfusion

@@ -1,0 +1,170 @@
+// zipfusion calibrate: intrinsics from checkerboard images, the rig's poses from a two-LED wand
+// capture (paper Section IV-A; docs/design.md "Calibration").
+
+#include <glob.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "zipfusion/calib/extrinsics.h"
+#include "zipfusion/calib/intrinsics.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+#include "zipfusion/io/image_io.h"
+
+namespace zipfusion::cli {
+namespace {
+
+struct IntrinsicsArgs {
+  std::string images, board = "9x6", out;
+  double square_m = 0.025;
+  bool no_distortion = false;
+};
+
+struct ExtrinsicsArgs {
+  std::string capture, out;
+  ExtrinsicOptions options;
+  int threads = 0;
+};
+
+std::vector<std::string> glob_files(const std::string& pattern) {
+  glob_t found{};
+  const int rc = ::glob(pattern.c_str(), 0, nullptr, &found);
+  std::vector<std::string> files;
+  if (rc == 0) {
+    for (size_t i = 0; i < found.gl_pathc; ++i) files.emplace_back(found.gl_pathv[i]);
+  }
+  ::globfree(&found);
+  if (files.empty()) throw InvalidInput("--images: no file matches '" + pattern + "'");
+  return files;  // glob sorts them
+}
+
+BoardOptions parse_board(const std::string& text, double square_m) {
+  int columns = 0, rows = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &columns, &rows, &tail) != 2) {
+    throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + text + "\"");
+  }
+  BoardOptions board{.inner_columns = columns, .inner_rows = rows, .square_m = square_m};
+  try {
+    board.validate();
+  } catch (const InvalidInput& e) {
+    throw InvalidInput(std::string("--") + e.what());
+  }
+  return board;
+}
+
+nlohmann::json intrinsics_json(const Intrinsics& k) {
+  nlohmann::json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
+  if (k.has_distortion) j["distortion"] = k.distortion;
+  return j;
+}
+
+void run_intrinsics(const IntrinsicsArgs& args) {
+  const BoardOptions board = parse_board(args.board, args.square_m);
+  const std::vector<std::string> files = glob_files(args.images);
+  std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners(files.size());
+  int width = 0, height = 0;
+  for (size_t i = 0; i < files.size(); ++i) {
+    const ColorImage image = read_color_image(files[i]);
+    if (i == 0) {
+      width = image.width;
+      height = image.height;
+    } else if (image.width != width || image.height != height) {
+      throw InvalidInput(files[i] + ": size: " + std::to_string(image.width) + "x" + std::to_string(image.height) + ", but " + files[0] +
+                         " is " + std::to_string(width) + "x" + std::to_string(height) + " (one camera per run)");
+    }
+    corners[i] = detect_board_corners(image, board);
+    show_progress("corners", static_cast<int>(i) + 1, static_cast<int>(files.size()));
+  }
+  const IntrinsicResult result =
+      calibrate_intrinsics(corners, files, width, height, board, {.estimate_distortion = !args.no_distortion});
+
+  nlohmann::json views = nlohmann::json::array();
+  std::cout << "view                                   board  used  RMS px\n";
+  for (const ViewReport& v : result.views) {
+    views.push_back({{"file", v.name}, {"board_found", v.board_found}, {"used", v.used}, {"rms_px", v.rms_px}});
+    char line[512];
+    std::snprintf(line, sizeof line, "%-38s %-6s %-5s %s\n", v.name.c_str(), v.board_found ? "yes" : "no",
+                  v.used ? "yes" : "no", v.board_found ? std::to_string(v.rms_px).substr(0, 5).c_str() : "-");
+    std::cout << line;
+  }
+  for (const std::string& name : result.rejected) std::cout << "rejected (error far above the other views): " << name << "\n";
+  const Intrinsics& k = result.intrinsics;
+  std::printf("fx %.3f  fy %.3f  cx %.3f  cy %.3f  k1 %.5f  k2 %.5f; overall RMS %.3f px over %zu views\n", k.fx, k.fy, k.cx, k.cy,
+              k.distortion[0], k.distortion[1], result.rms_px,
+              static_cast<size_t>(std::count_if(result.views.begin(), result.views.end(), [](const ViewReport& v) { return v.used; })));
+  const nlohmann::json out = {{"format", "zipfusion.intrinsics/1"},
+                              {"intrinsics", intrinsics_json(k)},
+                              {"rms_px", result.rms_px},
+                              {"board", {{"inner_columns", board.inner_columns}, {"inner_rows", board.inner_rows}, {"square_m", board.square_m}}},
+                              {"views", views},
+                              {"rejected", result.rejected}};
+  write_file_atomic(args.out, out.dump(2) + "\n");
+  std::cout << "wrote " << args.out << "\n";
+}
+
+void run_extrinsics(ExtrinsicsArgs& args) {
+  args.options.num_threads = args.threads;
+  args.options.validate();
+  const Capture capture = Capture::open(args.capture);
+  const WandObservations observations =
+      detect_wand(capture, {}, args.threads, [](int done, int total) { show_progress("detect", done, total); });
+  const ExtrinsicResult result = calibrate_extrinsics(capture.rig(), observations, args.options);
+
+  std::cout << "camera      detections  observations  error before BA  after BA (px)\n";
+  for (const CameraCalibrationReport& c : result.cameras) {
+    std::printf("%-11s %10d  %12d  %15.3f  %8.3f\n", c.name.c_str(), c.detections, c.observations_used, c.error_before_px, c.error_after_px);
+  }
+  std::printf("all         %10s  %12s  %15.3f  %8.3f\n", "", "", result.error_before_px, result.error_after_px);
+  std::cout << "initial rig from pairs:";
+  for (const PairReport& p : result.pairs) {
+    if (p.in_tree) std::cout << " " << capture.rig().cameras[p.camera_a].name << "-" << capture.rig().cameras[p.camera_b].name << " (" << p.inliers << " inliers)";
+  }
+  std::printf("\n%d LED points, mean LED distance %.4f m (wand %.4f m), %d observations dropped as outliers%s\n", result.points,
+              result.led_distance_mean_m, args.options.led_distance_m, result.dropped_observations,
+              result.converged ? "" : "; bundle adjustment stopped before converging");
+  if (capture.ground_truth_rig()) {
+    const Rig& truth = *capture.ground_truth_rig();
+    double worst_mm = 0, worst_deg = 0;
+    for (size_t c = 0; c < truth.cameras.size(); ++c) {
+      const Rigid3d& est = result.rig.cameras[c].world_from_depth;
+      const Rigid3d& tru = truth.cameras[c].world_from_depth;
+      worst_mm = std::max(worst_mm, 1000 * (est.translation() - tru.translation()).norm());
+      worst_deg = std::max(worst_deg, rotation_angle_deg(tru.inverse() * est));
+    }
+    std::printf("against ground_truth/rig.json: worst camera %.2f mm, %.3f deg\n", worst_mm, worst_deg);
+  }
+  write_rig(args.out, result.rig);
+  std::cout << "wrote " << args.out << "\n";
+}
+
+}  // namespace
+
+void add_calibrate_command(CLI::App& app) {
+  CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate cameras: intrinsics from a checkerboard, the rig's poses from a two-LED wand");
+  cmd->require_subcommand(1);
+
+  auto in = std::make_shared<IntrinsicsArgs>();
+  CLI::App* intr = cmd->add_subcommand("intrinsics", "A colour camera's intrinsics from checkerboard images (Zhang's method)");
+  intr->add_option("--images", in->images, "Glob of the board images, quoted (e.g. 'DIR/*.png')")->required();
+  intr->add_option("--board", in->board, "Inner corners COLUMNSxROWS")->capture_default_str();
+  intr->add_option("--square", in->square_m, "Square side, metres")->capture_default_str();
+  intr->add_option("--out", in->out, "Output JSON (intrinsics, per-view errors)")->required();
+  intr->add_flag("--no-distortion", in->no_distortion, "Do not estimate radial distortion (k1, k2)");
+  intr->callback([in] { run_intrinsics(*in); });
+
+  auto ex = std::make_shared<ExtrinsicsArgs>();
+  CLI::App* extr = cmd->add_subcommand("extrinsics", "All camera poses from a capture of a red and a green LED waved through the volume");
+  extr->add_option("capture", ex->capture, "Wand capture folder (rig.json with the intrinsics, colour frames)")->required();
+  extr->add_option("--led-distance", ex->options.led_distance_m, "Distance between the LEDs, metres")->capture_default_str();
+  extr->add_option("--out", ex->out, "Output rig.json (the capture's rig with calibrated poses)")->required();
+  extr->add_option("--min-common-frames", ex->options.min_common_frames, "Frames two cameras must share to be paired")->capture_default_str();
+  extr->add_option("--threads", ex->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  extr->callback([ex] { run_extrinsics(*ex); });
+}
+
+}  // namespace zipfusion::cli

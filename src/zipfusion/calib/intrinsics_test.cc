@@ -1,0 +1,84 @@
+// Checkerboard intrinsics against rendered views with known intrinsics (the target: fx,
+// fy, cx, cy within 0.5 %), and the rejection of a bad view.
+
+#include "zipfusion/calib/intrinsics.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/core/parallel.h"
+#include "zipfusion/synth/calib_targets.h"
+
+namespace zipfusion {
+namespace {
+
+struct Detected {
+  std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners;
+  std::vector<std::string> names;
+};
+
+Detected detect(const std::vector<CheckerboardView>& views, const BoardOptions& board) {
+  Detected d;
+  d.corners.resize(views.size());
+  parallel_for(0, static_cast<int>(views.size()), [&](int v) { d.corners[v] = detect_board_corners(views[v].image, board); });
+  for (size_t v = 0; v < views.size(); ++v) d.names.push_back("view_" + std::to_string(v));
+  return d;
+}
+
+TEST(Intrinsics, RecoversTheTrueIntrinsicsWithinHalfAPercent) {
+  const CheckerboardOptions options{.views = 15};
+  const std::vector<CheckerboardView> views = render_checkerboard_views(options);
+  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const Detected d = detect(views, board);
+  int found = 0;
+  for (const auto& c : d.corners) found += c.has_value();
+  EXPECT_GE(found, 13);
+  const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 640, 480, board);
+  const Intrinsics& t = options.intrinsics;
+  const Intrinsics& k = result.intrinsics;
+  std::printf("fx %.3f (true %.1f, %.3f %%) fy %.3f (%.1f, %.3f %%) cx %.3f (%.1f, %.3f %%) cy %.3f (%.1f, %.3f %%), RMS %.3f px\n", k.fx, t.fx,
+              100 * (k.fx / t.fx - 1), k.fy, t.fy, 100 * (k.fy / t.fy - 1), k.cx, t.cx, 100 * (k.cx / t.cx - 1), k.cy, t.cy,
+              100 * (k.cy / t.cy - 1), result.rms_px);
+  EXPECT_NEAR(k.fx, t.fx, 0.005 * t.fx);
+  EXPECT_NEAR(k.fy, t.fy, 0.005 * t.fy);
+  EXPECT_NEAR(k.cx, t.cx, 0.005 * t.cx);
+  EXPECT_NEAR(k.cy, t.cy, 0.005 * t.cy);
+  EXPECT_LT(result.rms_px, 0.3);
+  EXPECT_TRUE(result.rejected.empty());
+  for (const ViewReport& v : result.views) {
+    if (v.board_found) {
+      EXPECT_LT(v.rms_px, 0.5) << v.name;
+    }
+  }
+}
+
+TEST(Intrinsics, RejectsAndNamesAViewFarWorseThanTheRest) {
+  const CheckerboardOptions options{.views = 10, .seed = 3};
+  const BoardOptions board;
+  Detected d = detect(render_checkerboard_views(options), board);
+  ASSERT_TRUE(d.corners[4].has_value());
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> noise(0, 3.0);
+  for (Eigen::Vector2d& p : *d.corners[4]) p += Eigen::Vector2d(noise(rng), noise(rng));  // a misdetected board
+  const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 640, 480, board);
+  ASSERT_EQ(result.rejected.size(), 1u);
+  EXPECT_EQ(result.rejected[0], "view_4");
+  EXPECT_FALSE(result.views[4].used);
+  EXPECT_NEAR(result.intrinsics.fx, options.intrinsics.fx, 0.005 * options.intrinsics.fx);
+}
+
+TEST(Intrinsics, TooFewBoardsIsAnErrorThatSaysHowMany) {
+  const BoardOptions board;
+  const std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners(4);
+  try {
+    calibrate_intrinsics(corners, {"a", "b", "c", "d"}, 640, 480, board);
+    FAIL();
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("found in 0 of 4"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace zipfusion
