@@ -15,6 +15,7 @@ packages=(
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md
+  libopen3d-dev                      # bench only: Open3D TSDF/Poisson side by side (never in the library)
 )
 
 missing=()
