@@ -259,7 +259,9 @@ PoissonResult run_poisson(const Capture& capture, const Rig& rig, int frame, con
 
 void run(const Args& args) {
   if (!(std::isfinite(args.voxel_m) && args.voxel_m > 0 && args.voxel_m <= 0.5)) {
-    throw InvalidInput("--voxel: must be in (0, 0.5] metres, got " + std::to_string(args.voxel_m));
+    char text[64];
+    std::snprintf(text, sizeof text, "%g", args.voxel_m);
+    throw InvalidInput(std::string("--voxel: must be in (0, 0.5] metres, got ") + text);
   }
   if (args.threads < 0) throw InvalidInput("--threads: must be >= 0, got " + std::to_string(args.threads));
   if (args.threads > 0) omp_set_num_threads(args.threads);
@@ -345,10 +347,9 @@ void run(const Args& args) {
   const std::vector<std::pair<const char*, double FrameTimes::*>> fields = {
       {"decode", &FrameTimes::decode_ms},       {"prepare", &FrameTimes::prepare_ms}, {"integrate", &FrameTimes::integrate_ms},
       {"extract", &FrameTimes::extract_ms},     {"total", &FrameTimes::total_ms},     {"write", &FrameTimes::write_ms}};
-  nlohmann::ordered_json median_ms, p95_ms;
+  nlohmann::ordered_json stages;  // "integrate_ms": {"median": .., "p95": ..}, as `zipfusion bench` reports stages
   for (const auto& [name, field] : fields) {
-    median_ms[name] = percentile(column(field), 50);
-    p95_ms[name] = percentile(column(field), 95);
+    stages[std::string(name) + "_ms"] = {{"median", percentile(column(field), 50)}, {"p95", percentile(column(field), 95)}};
   }
   std::vector<double> triangles;
   for (const FrameTimes& t : frames) triangles.push_back(static_cast<double>(t.triangles));
@@ -367,10 +368,9 @@ void run(const Args& args) {
                {"color", "RGB8"},
                {"input", "zipfusion extract_foreground (0.4-4.5 m, capture volume per pixel), colour resampled into the depth camera"},
                {"total_is", "integrate + extract (decode, prepare and write apart)"},
-               {"median_ms", median_ms},
-               {"p95_ms", p95_ms},
                {"median_triangles", percentile(triangles, 50)},
                {"peak_rss_mib", tsdf_rss_mib}};
+  j["tsdf"].update(stages);
   nlohmann::ordered_json per_frame = nlohmann::json::array();
   for (const FrameTimes& t : frames) {
     per_frame.push_back({{"frame", t.frame},
@@ -402,7 +402,10 @@ void run(const Args& args) {
               OPEN3D_VERSION, args.voxel_m * 1000, sdf_trunc_m * 1000, threads, wait_policy ? wait_policy : "default", range.begin, range.end,
               args.capture.c_str());
   std::printf("%-10s %10s %10s\n", "ms", "median", "p95");
-  for (const auto& [name, field] : fields) std::printf("%-10s %10.1f %10.1f\n", name, median_ms[name].get<double>(), p95_ms[name].get<double>());
+  for (const auto& [name, field] : fields) {
+    const nlohmann::ordered_json& stage = stages[std::string(name) + "_ms"];
+    std::printf("%-10s %10.1f %10.1f\n", name, stage["median"].get<double>(), stage["p95"].get<double>());
+  }
   std::printf("total = integrate + extract; median %.0f triangles per frame; peak RSS %.0f MiB\n", percentile(triangles, 50), tsdf_rss_mib);
   if (poisson) {
     std::printf("Poisson depth %d, frame %d: %zu points, normals %.1f ms, Poisson %.1f ms, %zu triangles -> %s\n", kPoissonDepth, poisson->frame,
