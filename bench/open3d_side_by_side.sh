@@ -49,6 +49,14 @@ for round in $(seq 1 "$rounds"); do
   done
 done
 
+# zipfusion's own benchmark: the same frame sets decoded once beforehand (no decoding thread
+# competing for the cores), every configuration --repeat times. It takes the first N frame sets.
+count=$(( ${frames##*:} - first ))
+if [ "$first" -eq 0 ]; then
+  echo "== zipfusion bench --frames $count --repeat $rounds" >&2
+  "$build/zipfusion" bench "$capture" --rig "$rig" --frames "$count" --repeat "$rounds" --threads "$threads" --json > "$out/zf_bench.json"
+fi
+
 for name in o3d_10mm o3d_5mm zf_zipper_bilateral zf_zipper_none zf_separate_bilateral zf_separate_none; do
   echo "== eval $name" >&2
   "$build/zipfusion" eval "$capture" "$out/round1/$name" --frames "$frames" --json > "$out/$name.eval.json"
@@ -68,11 +76,22 @@ def pct(values, p):
         n = len(v)
         return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
     return v[max(math.ceil(p / 100 * len(v)), 1) - 1]
+import os
+bench = load(f"{out}/zf_bench.json") if os.path.exists(f"{out}/zf_bench.json") else None
+def bench_ms(config):
+    if not bench:
+        return None
+    for c in bench["configs"]:
+        if c["name"] == config:
+            return c["ms"]["total"]
+    return None
 rows = []
 loads = []
-for name, label in [("o3d_10mm", "Open3D TSDF 10 mm"), ("o3d_5mm", "Open3D TSDF 5 mm"),
-                    ("zf_zipper_bilateral", "zipfusion zipper, bilateral"), ("zf_zipper_none", "zipfusion zipper, --filter none"),
-                    ("zf_separate_bilateral", "zipfusion separate, bilateral"), ("zf_separate_none", "zipfusion separate, --filter none")]:
+for name, label, config in [("o3d_10mm", "Open3D TSDF 10 mm", None), ("o3d_5mm", "Open3D TSDF 5 mm", None),
+                            ("zf_zipper_bilateral", "zipfusion zipper, bilateral", "zipper+filter"),
+                            ("zf_zipper_none", "zipfusion zipper, --filter none", "zipper"),
+                            ("zf_separate_bilateral", "zipfusion separate, bilateral", "separate+filter"),
+                            ("zf_separate_none", "zipfusion separate, --filter none", "separate")]:
     totals, prep, rss = [], [], 0
     for r in range(1, rounds + 1):
         stats = load(f"{out}/round{r}/{name}/stats.json")
@@ -83,19 +102,21 @@ for name, label in [("o3d_10mm", "Open3D TSDF 10 mm"), ("o3d_5mm", "Open3D TSDF 
             totals += [f["ms"]["total"] for f in stats["frames"]]
         rss = max(rss, int(open(f"{out}/round{r}/{name}.rss_kb").read().split()[-1]) / 1024)
         loads.append(float(open(f"{out}/round{r}/{name}.load").read()))
-    rows.append((label, pct(totals, 50), pct(totals, 95), pct(prep, 50) if prep else None, load(f"{out}/{name}.eval.json")["mean"], rss))
+    rows.append((label, pct(totals, 50), pct(totals, 95), pct(prep, 50) if prep else None, bench_ms(config) if config else None,
+                 load(f"{out}/{name}.eval.json")["mean"], rss))
 poisson = [load(f"{out}/round{r}/o3d_10mm/stats.json")["poisson"] for r in range(1, rounds + 1)]
-stats = poisson[0]
-rows.append((f"Open3D Poisson depth 8 (frame {stats['frame']} only)", pct([p["ms"]["total"] for p in poisson], 50), None,
-             pct([p["ms"]["prepare"] for p in poisson], 50), load(f"{out}/poisson.eval.json")["mean"], None))
+rows.append((f"Open3D Poisson depth 8 (frame {poisson[0]['frame']} only)", pct([p["ms"]["total"] for p in poisson], 50), None,
+             pct([p["ms"]["prepare"] for p in poisson], 50), None, load(f"{out}/poisson.eval.json")["mean"], None))
 print(f"{rounds} rounds, threads {sys.argv[3]} (0 = all cores); load average (1 min) before the runs: {min(loads):.1f} to {max(loads):.1f}")
 print("Poisson ms per round (normals + Poisson):", ", ".join(f"{p['ms']['normals']:.0f} + {p['ms']['poisson']:.0f}" for p in poisson))
+print()
 base = rows[0][1]
-print("| method | median ms | p95 ms | × faster than Open3D 10 mm | accuracy mean / p95 mm | completeness % | area ratio | components (large) | triangles | peak RSS MiB |")
+print("| method | ms per frame set, median / p95 | × faster than Open3D 10 mm | `zipfusion bench` ms, median / p95 | accuracy mean / p95 mm | completeness % | area ratio | components (large) | triangles | peak RSS MiB |")
 print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
-for label, med, p95, prep, q, rss in rows:
-    med_s = f"{med:.1f}" + (f" (+{prep:.0f} prep.)" if prep is not None else "")
-    print(f"| {label} | {med_s} | {'' if p95 is None else f'{p95:.1f}'} | {base / med:.2f} | {q['accuracy_mean_mm']:.2f} / {q['accuracy_p95_mm']:.2f} | "
+for label, med, p95, prep, b, q, rss in rows:
+    ms = f"{med:.1f}" + ("" if p95 is None else f" / {p95:.1f}") + (f" (+{prep:.0f} prep.)" if prep is not None else "")
+    bs = "" if b is None else f"{b['median']:.1f} / {b['p95']:.1f}"
+    print(f"| {label} | {ms} | {base / med:.2f} | {bs} | {q['accuracy_mean_mm']:.2f} / {q['accuracy_p95_mm']:.2f} | "
           f"{100 * q['completeness']:.1f} | {q['area_ratio']:.2f} | {q['components']:.0f} ({q['large_components']:.1f}) | {q['triangles']:.0f} | "
           f"{'' if rss is None else f'{rss:.0f}'} |")
 EOF
