@@ -266,7 +266,8 @@ void run(const Args& args) {
   if (args.threads < 0) throw InvalidInput("--threads: must be >= 0, got " + std::to_string(args.threads));
   if (args.threads > 0) omp_set_num_threads(args.threads);
   const int threads = args.threads > 0 ? args.threads : omp_get_max_threads();
-  o3d::utility::SetVerbosityLevel(o3d::utility::VerbosityLevel::Warning);
+  // Open3D logs to standard output: with --json only its errors (which also throw) may appear.
+  o3d::utility::SetVerbosityLevel(args.json ? o3d::utility::VerbosityLevel::Error : o3d::utility::VerbosityLevel::Warning);
 
   const Capture capture = Capture::open(args.capture);
   const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
