@@ -30,10 +30,14 @@ done
 if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
   step "Open3D TSDF (10 mm, 5 mm) and Poisson, same frames"
   for voxel in 0.01 0.005; do
-    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" \
+    poisson=--no-poisson
+    [[ "$voxel" == 0.01 ]] && poisson="--poisson-frame 0"
+    # shellcheck disable=SC2086
+    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" $poisson \
       --out "$OUT/meshes/open3d_$voxel" --json > "$OUT/open3d_$voxel.json"
     "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_open3d_$voxel.json"
   done
+  "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_0.01/poisson" --frames 0 --json > "$OUT/eval_poisson.json"
 fi
 
 step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes"
