@@ -2,6 +2,7 @@
 # Runs every benchmark and writes docs/benchmarks.md from the results (make bench).
 # Raw results (JSON) go to $BENCH_OUT (default out/bench). Needs ../shared/data/samba-4cam.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 
 BUILD_DIR=${BUILD_DIR:-build}
 OUT=${BENCH_OUT:-out/bench}
@@ -11,6 +12,18 @@ SOAK=${BENCH_SOAK:-1000}
 SCALE_FRAMES=${BENCH_SCALE_FRAMES:-10}
 ZF=$BUILD_DIR/zipfusion
 mkdir -p "$OUT"
+[[ -f "$SAMBA/rig.json" ]] || { echo "bench.sh: $SAMBA/rig.json: not found (the samba-4cam capture of ../shared/data)" >&2; exit 2; }
+
+# A synthetic capture, written beside its final place and moved there once complete, so an
+# interrupted run never leaves a half-written capture to be reused.
+synth_once() {
+  local capture=$1
+  shift
+  [[ -f "$capture/rig.json" ]] && return
+  rm -rf "$capture" "$capture.partial"
+  "$ZF" synth --out "$capture.partial" "$@" > /dev/null
+  mv "$capture.partial" "$capture"
+}
 
 step() { echo "== $*" >&2; }
 
@@ -43,12 +56,12 @@ fi
 step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes"
 for cameras in 2 4 6 8; do
   capture="$OUT/synth/cameras_$cameras"
-  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras "$cameras" --frames "$SCALE_FRAMES" > /dev/null
+  synth_once "$capture" --cameras "$cameras" --frames "$SCALE_FRAMES"
   "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_cameras_$cameras.json"
 done
 for size in 320x240 640x480 1280x960; do
   capture="$OUT/synth/size_$size"
-  [[ -d "$capture" ]] || "$ZF" synth --out "$capture" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size" > /dev/null
+  synth_once "$capture" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size"
   "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_size_$size.json"
 done
 

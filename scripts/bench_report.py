@@ -19,7 +19,10 @@ def load(folder, name):
 
 
 def config(report, name):
-    return next(c for c in report["configs"] if c["name"] == name)
+    for c in report["configs"]:
+        if c["name"] == name:
+            return c
+    sys.exit(f"bench_report: configuration '{name}' missing from the bench results")
 
 
 def ms(entry):
@@ -37,6 +40,8 @@ def stage_table(report, names):
 
 def main(folder):
     samba = load(folder, "samba.json")
+    if samba is None:
+        sys.exit(f"bench_report: {os.path.join(folder, 'samba.json')}: not found (run scripts/bench.sh)")
     out = ["# Benchmarks", "",
            "Written by `make bench` (scripts/bench.sh, then scripts/bench_report.py); raw results in out/bench/.",
            f"Run {datetime.date.today().isoformat()} on {samba['machine']['cpu']}, {samba['machine']['hardware_threads']} hardware threads, "
@@ -124,7 +129,8 @@ def main(folder):
     if samba.get("soak"):
         s = samba["soak"]
         out += ["## Memory", "", f"Resident memory while reconstructing {s['frames']} frame sets in a row (zipper+filter): "
-                f"{s['rss_mb_at_100']:.0f} MB after 100, {s['rss_mb_at_end']:.0f} MB after {s['frames']}; peak {samba['peak_rss_mb']:.0f} MB.", ""]
+                f"{s['rss_mb_early']:.0f} MB after {s['early_frames']}, {s['rss_mb_at_end']:.0f} MB after {s['frames']}; "
+                f"peak {samba['peak_rss_mb']:.0f} MB.", ""]
 
     kernels = [load(folder, name) for name in ("kernels.json", "micro.json")]
     if any(kernels):
@@ -136,10 +142,8 @@ def main(folder):
                     out.append(f"| {b['run_name']} | {b['real_time']:.3f} |")
         out.append("")
 
-    profile = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "profile.md")
-    if os.path.exists(profile):
-        with open(profile) as f:
-            out += [f.read().rstrip(), ""]
+    out += ["## Where the time goes", "", "See [profile.md](profile.md): a `perf` profile of the stages, taken separately from "
+            "this run, and what reaching the targets would take.", ""]
     print("\n".join(out))
 
 

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +16,7 @@
 #include <map>
 
 #include "cli/commands.h"
+#include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/pipeline/pipeline.h"
@@ -43,7 +45,11 @@ struct Percentiles {
 Percentiles percentiles(std::vector<double> values) {
   if (values.empty()) return {};
   std::sort(values.begin(), values.end());
-  auto at = [&](double q) { return values[std::min(values.size() - 1, static_cast<size_t>(q * static_cast<double>(values.size())))]; };
+  // Nearest rank: the smallest value with at least a share q of the values at or below it.
+  auto at = [&](double q) {
+    const size_t rank = static_cast<size_t>(std::ceil(q * static_cast<double>(values.size())));
+    return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
+  };
   return {at(0.5), at(0.95)};
 }
 
@@ -109,14 +115,12 @@ ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::ve
 void run_bench(const BenchArgs& args) {
   if (args.frames < 1) throw InvalidInput("--frames: must be at least 1");
   if (args.repeat < 1) throw InvalidInput("--repeat: must be at least 1");
+  if (args.soak < 0) throw InvalidInput("--soak: must be 0 or more");
+  if (args.threads < 0) throw InvalidInput("--threads: must be 0 (all cores) or more");
   const Capture capture = Capture::open(args.capture);
-  Rig rig = capture.rig();
-  if (!args.rig.empty()) {
-    const Rig other = read_rig(args.rig);
-    if (other.cameras.size() != rig.cameras.size()) throw InvalidInput(args.rig + ": cameras: not the capture's cameras");
-    for (size_t c = 0; c < rig.cameras.size(); ++c) rig.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
-  }
+  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   const int count = std::min(args.frames, capture.frame_count());
+  if (count == 0) throw InvalidInput((capture.dir() / "rig.json").string() + ": frame_count: is 0, nothing to time");
 
   // Decoding, separately from reconstruction: each frame set's cameras in parallel.
   std::vector<FrameSet> frames;
@@ -159,13 +163,14 @@ void run_bench(const BenchArgs& args) {
   nlohmann::ordered_json soak = nullptr;
   if (args.soak > 0) {
     FrameReconstructor reconstructor(rig, configs[0].options);
-    double at_100 = 0;
+    const int early = std::min(100, args.soak);
+    double at_early = 0;
     for (int i = 0; i < args.soak; ++i) {
       const FrameResult result = reconstructor.reconstruct(frames[i % frames.size()]);
-      if (i + 1 == std::min(100, args.soak)) at_100 = resident_mb();
+      if (i + 1 == early) at_early = resident_mb();
       if ((i + 1) % 50 == 0) show_progress("soak", i + 1, args.soak);
     }
-    soak = {{"frames", args.soak}, {"rss_mb_at_100", at_100}, {"rss_mb_at_end", resident_mb()}};
+    soak = {{"frames", args.soak}, {"early_frames", early}, {"rss_mb_early", at_early}, {"rss_mb_at_end", resident_mb()}};
   }
 
   const Percentiles decode = percentiles(decode_ms);
@@ -205,8 +210,10 @@ void run_bench(const BenchArgs& args) {
   std::printf("\n%-12s", "triangles");
   for (const ConfigResult& r : results) std::printf(" %17.0f", r.triangles);
   std::printf("\n\npeak resident memory %.0f MB", peak_resident_mb());
-  if (args.soak > 0) std::printf("; resident after 100 frame sets %.0f MB, after %d %.0f MB", soak["rss_mb_at_100"].get<double>(), args.soak,
-                                 soak["rss_mb_at_end"].get<double>());
+  if (args.soak > 0) {
+    std::printf("; resident after %d frame sets %.0f MB, after %d %.0f MB", soak["early_frames"].get<int>(), soak["rss_mb_early"].get<double>(),
+                args.soak, soak["rss_mb_at_end"].get<double>());
+  }
   std::printf("\n");
 }
 

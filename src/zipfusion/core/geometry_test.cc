@@ -87,6 +87,43 @@ TEST(Parallel, VisitsEveryIndexOnceAndRethrows) {
   EXPECT_EQ(sum, 4950);
 }
 
+TEST(Parallel, CallerRunsOnlyItsOwnBlocks) {
+  // A call must not run another call's queued block: its time would include that block's.
+  // Caller A occupies itself and a worker; caller B runs its first block and leaves its second
+  // queued; then this thread's call must run its own blocks, not B's queued one.
+  std::atomic<bool> release = false;
+  std::atomic<int> a_started = 0;
+  std::atomic<bool> b_started = false;
+  std::atomic<bool> b_second_on_main = false;
+  const std::thread::id main_thread = std::this_thread::get_id();
+  const int blocks = std::min(2, hardware_threads());
+  std::jthread a([&] {
+    parallel_for(0, blocks, [&](int) {
+      ++a_started;
+      while (!release) std::this_thread::yield();
+    });
+  });
+  while (a_started < blocks) std::this_thread::yield();
+  std::jthread b([&] {
+    parallel_for(0, 2, [&](int i) {
+      if (i == 0) {
+        b_started = true;
+        while (!release) std::this_thread::yield();
+      } else {
+        b_second_on_main = std::this_thread::get_id() == main_thread;
+      }
+    });
+  });
+  while (!b_started) std::this_thread::yield();
+  std::atomic<int> done = 0;
+  parallel_for(0, 2, [&](int) { ++done; });
+  release = true;
+  a.join();
+  b.join();
+  EXPECT_EQ(done, 2);
+  EXPECT_FALSE(b_second_on_main);
+}
+
 TEST(Parallel, NestedAndConcurrentCallsFinish) {
   // Calls from inside a body and from several threads at once share the pool; none may wait
   // forever on a worker that waits on it.

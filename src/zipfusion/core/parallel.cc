@@ -25,8 +25,9 @@ struct Task {
 
 // Workers kept for the life of the process: a frame set makes dozens of parallel_for calls, and
 // starting threads for each cost about a millisecond per frame. A caller runs one block itself
-// and, while its other blocks are pending, runs queued tasks (its own or other callers'), so
-// nested or concurrent calls never wait on a worker that waits on them.
+// and, while its other blocks are pending, runs those of them still queued, so a nested call
+// never waits on a worker that waits on it. It never runs another caller's blocks: that would
+// add their time to its own (the pipeline's decoding to a frame's reconstruction).
 class ThreadPool {
  public:
   explicit ThreadPool(int workers) {
@@ -34,7 +35,12 @@ class ThreadPool {
   }
 
   ~ThreadPool() {
-    for (auto& worker : workers_) worker.request_stop();
+    {
+      // Under the lock: a worker between checking its wait condition and sleeping would
+      // otherwise miss both the stop and the notification, and the join would wait for ever.
+      std::lock_guard lock(mutex_);
+      for (auto& worker : workers_) worker.request_stop();
+    }
     wake_.notify_all();
   }
 
@@ -51,9 +57,10 @@ class ThreadPool {
     execute({&job, std::move(blocks[0])});
     std::unique_lock lock(mutex_);
     while (job.remaining > 0) {
-      if (!queue_.empty()) {
-        Task task = std::move(queue_.front());
-        queue_.pop_front();
+      const auto own = std::find_if(queue_.begin(), queue_.end(), [&](const Task& task) { return task.job == &job; });
+      if (own != queue_.end()) {
+        Task task = std::move(*own);
+        queue_.erase(own);
         lock.unlock();
         execute(std::move(task));
         lock.lock();

@@ -35,7 +35,7 @@ double rms_error(const Image<float>& depth, int u0, int u1, float truth) {
   return std::sqrt(sum / n);
 }
 
-// Both forms of the filter, the separable default and the paper's square window, must do the job.
+// Both forms of the filter, the paper's square window (the default) and the separable one, must do the job.
 class BilateralForm : public ::testing::TestWithParam<bool> {
  protected:
   BilateralOptions options() const { return {.separable = GetParam()}; }

@@ -73,6 +73,16 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
     }
     decoded.close();
   });
+  // Should starting the sink thread fail, the queues are closed before the source thread is
+  // joined, so it cannot stay blocked on a full queue.
+  struct CloseQueues {
+    BoundedQueue<DecodedFrame>& decoded;
+    BoundedQueue<PipelineFrame>& reconstructed;
+    ~CloseQueues() {
+      decoded.close();
+      reconstructed.close();
+    }
+  } close_queues{decoded, reconstructed};
   std::jthread sink_thread([&] {
     try {
       while (std::optional<PipelineFrame> frame = reconstructed.pop()) sink(*frame);
@@ -87,8 +97,8 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
     while (std::optional<DecodedFrame> item = decoded.pop()) {
       if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
       PipelineFrame frame{.index = item->frames.index, .decode_ms = item->decode_ms, .result = reconstructor.reconstruct(item->frames)};
-      ++stats.frames;
       if (!reconstructed.push(std::move(frame))) break;
+      ++stats.frames;
     }
   } catch (...) {
     error.set(std::current_exception());

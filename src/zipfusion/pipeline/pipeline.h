@@ -106,7 +106,7 @@ struct PipelineOptions {
 };
 
 struct PipelineStats {
-  int frames = 0;          // frame sets reconstructed
+  int frames = 0;          // frame sets reconstructed and handed to the sink
   long dropped = 0;        // frame sets the source queue discarded (live only)
   double wall_ms = 0;      // first decode to last sink call
 };

@@ -89,6 +89,21 @@ TEST_F(PipelineTest, SourceErrorIsRethrown) {
   EXPECT_THROW(run_pipeline(failing, reconstructor, [](PipelineFrame&) {}), InvalidInput);
 }
 
+TEST_F(PipelineTest, ReconstructionStageErrorIsRethrownAndEveryThreadEnds) {
+  // An error on the reconstruction thread (here in the hook before each frame) must stop the
+  // source, which would otherwise block on its full queue for ever.
+  std::atomic<int> produced = 0;
+  PipelineOptions options;
+  options.before_reconstruct = [](const FrameSet& frames, FrameReconstructor&) {
+    if (frames.index == 3) throw std::runtime_error("pose update failed");
+  };
+  std::vector<int> sunk;
+  EXPECT_THROW(run_pipeline(empty_frames(1000, 3, &produced), reconstructor, [&](PipelineFrame& frame) { sunk.push_back(frame.index); }, options),
+               std::runtime_error);
+  EXPECT_LT(produced, 20);
+  EXPECT_LE(sunk.size(), 3u);
+}
+
 TEST_F(PipelineTest, LiveSourceDropsFramesWhenTheSinkIsSlow) {
   const PipelineStats stats = run_pipeline(
       empty_frames(200, 3), reconstructor, [](PipelineFrame&) { std::this_thread::sleep_for(std::chrono::milliseconds(2)); },
