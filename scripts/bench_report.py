@@ -111,6 +111,7 @@ def main(folder):
     out += ["", "Target (issue 6): zipfusion ≥ 5× faster than Open3D TSDF at 10 mm, with better accuracy and completeness. "
             "The paper reports Poisson reconstruction taking seconds per frame.", ""]
 
+    scale = load(folder, "scale_cameras_4.json")
     out += ["## Scaling", "", f"Synthetic rigs from `zipfusion synth` ({scale['frames'] if scale else '?'} frames, built-in human, "
             "Kinect noise, ring of 2.5 m radius), `zipfusion bench --repeat 2`: total ms, median.", "",
             "| rig | zipper | zipper+filter | separate |", "|---|---|---|---|"]
