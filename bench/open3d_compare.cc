@@ -55,6 +55,7 @@
 #include <open3d/utility/Logging.h>
 
 #include "cli/frame_range.h"
+#include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/depth/color_lookup.h"
 #include "zipfusion/depth/foreground.h"
@@ -103,25 +104,6 @@ double percentile(std::vector<double> values, double p) {
   }
   const size_t rank = static_cast<size_t>(std::ceil(p / 100.0 * values.size()));
   return values[std::max<size_t>(rank, 1) - 1];
-}
-
-// Poses from another rig.json describing the same cameras (as `zipfusion reconstruct --rig`):
-// only world_from_depth is taken; the volume and everything else stay the capture's.
-Rig rig_with_poses_from(const Rig& rig, const fs::path& path) {
-  Rig other = read_rig(path);
-  if (other.cameras.size() != rig.cameras.size()) {
-    throw InvalidInput(path.string() + ": cameras: has " + std::to_string(other.cameras.size()) + " cameras, the capture has " +
-                       std::to_string(rig.cameras.size()));
-  }
-  Rig result = rig;
-  for (size_t c = 0; c < rig.cameras.size(); ++c) {
-    if (other.cameras[c].name != rig.cameras[c].name) {
-      throw InvalidInput(path.string() + ": cameras[" + std::to_string(c) + "].name: \"" + other.cameras[c].name + "\" is not the capture's \"" +
-                         rig.cameras[c].name + "\"");
-    }
-    result.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
-  }
-  return result;
 }
 
 // Colour of each depth pixel with depth, sampled from the colour image (as lookup_colors), written
@@ -270,7 +252,7 @@ void run(const Args& args) {
   o3d::utility::SetVerbosityLevel(args.json ? o3d::utility::VerbosityLevel::Error : o3d::utility::VerbosityLevel::Warning);
 
   const Capture capture = Capture::open(args.capture);
-  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  const Rig rig = args.rig.empty() ? capture.rig() : cli::rig_with_poses_from(capture.rig(), args.rig);
   const cli::FrameRange range = cli::parse_frame_range(args.frames, capture.frame_count());
   const int poisson_frame = args.poisson_frame < 0 ? range.begin : args.poisson_frame;
   if (!args.no_poisson && poisson_frame >= capture.frame_count()) {

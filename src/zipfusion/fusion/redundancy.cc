@@ -75,7 +75,11 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
   });
 }
 
-bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell) {
+namespace {
+
+// Does b have, at one of the 2×2 pixels around p's projection, depth within `depth_tolerance` of
+// p's, or (when `no_depth_counts`) no depth at all? Optionally returns the cell p projects to.
+bool depth_near_projection(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, bool no_depth_counts, int* cell) {
   Eigen::Vector2f pixel;
   float depth = 0;
   if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
@@ -85,29 +89,21 @@ bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tole
   if (cell != nullptr) *cell = base;
   for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
     const float z = b.mesh->depth[index];
-    if (z <= 0 || std::abs(z - depth) < depth_tolerance) return true;  // no depth: cannot tell
+    if ((no_depth_counts && z <= 0) || std::abs(z - depth) < depth_tolerance) return true;
   }
   return false;
 }
 
-namespace {
-
-// Does b have depth within `depth_tolerance` of p's at a pixel next to p's projection? Unlike
-// may_see_point, a pixel without depth does not count.
+// Does b see a surface at p? Unlike may_see_point, a pixel without depth does not count.
 bool may_see_surface(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
-  Eigen::Vector2f pixel;
-  float depth = 0;
-  if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
-  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-  if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
-  const int base = v * b.mesh->width + u;
-  for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
-    if (std::abs(b.mesh->depth[index] - depth) < depth_tolerance) return true;
-  }
-  return false;
+  return depth_near_projection(b, p, depth_tolerance, false, nullptr);
 }
 
 }  // namespace
+
+bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell) {
+  return depth_near_projection(b, p, depth_tolerance, true, cell);  // no depth: cannot tell
+}
 
 bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
