@@ -4,6 +4,7 @@
 #include <random>
 #include <string>
 #include <system_error>
+#include <unistd.h>
 
 #include "zipfusion/core/error.h"
 
@@ -53,6 +54,37 @@ void write_file_atomic(const std::filesystem::path& path, std::span<const std::u
 
 void write_file_atomic(const std::filesystem::path& path, std::string_view text) {
   write_file_atomic(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
+void check_new_folder(const std::filesystem::path& dir, std::string_view option) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
+    throw InvalidInput(dir.string() + ": already exists and is not empty (choose a new " + std::string(option) + ")");
+  }
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  fs::create_directories(parent, ec);
+  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
+}
+
+void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill) {
+  namespace fs = std::filesystem;
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  const fs::path staging = parent / ("." + dir.filename().string() + ".partial-" + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::remove_all(staging, ec);
+  try {
+    fs::create_directories(staging);
+    fill(staging);
+    if (fs::exists(dir, ec)) fs::remove(dir);  // an empty folder: check_new_folder allowed it
+    fs::rename(staging, dir);
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(staging, ec);
+    throw IoError(e.path1().string() + ": " + e.code().message());
+  } catch (...) {
+    fs::remove_all(staging, ec);
+    throw;
+  }
 }
 
 }  // namespace zipfusion

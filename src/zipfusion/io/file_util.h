@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -17,5 +18,14 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
 //! Writes bytes to path atomically. Throws IoError naming the file on failure.
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_file_atomic(const std::filesystem::path& path, std::string_view text);
+
+//! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command
+//! line option that chose it), and IoError when its parent folder cannot be created.
+void check_new_folder(const std::filesystem::path& dir, std::string_view option);
+
+//! Writes a whole folder atomically: `fill` writes into a hidden staging folder beside `dir`,
+//! which is then renamed to `dir` (which check_new_folder accepted). On any error the staging
+//! folder is removed and the error rethrown (a filesystem error as IoError naming the path).
+void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill);
 
 }  // namespace zipfusion

@@ -1,6 +1,5 @@
 #include "zipfusion/synth/calib_targets.h"
 
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -164,13 +163,7 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
                                const std::function<void(int, int)>& progress) {
   rig_options.validate();
   options.validate();
-  std::error_code ec;
-  if (fs::exists(out_dir, ec) && !(fs::is_directory(out_dir, ec) && fs::is_empty(out_dir, ec))) {
-    throw InvalidInput(out_dir.string() + ": already exists and is not empty (choose a new --out)");
-  }
-  const fs::path parent = out_dir.has_parent_path() ? out_dir.parent_path() : fs::path(".");
-  fs::create_directories(parent, ec);
-  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
+  check_new_folder(out_dir, "--out");
 
   SynthResult result;
   result.true_rig = make_ring_rig(rig_options);
@@ -179,9 +172,7 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
   result.rig = miscalibrate(result.true_rig, rig_options);
   const WandSequence sequence = make_wand_sequence(*result.true_rig.volume, options);
 
-  const fs::path staging = parent / ("." + out_dir.filename().string() + ".partial-" + std::to_string(::getpid()));
-  fs::remove_all(staging, ec);
-  try {
+  write_folder_atomic(out_dir, [&](const fs::path& staging) {
     for (const CameraModel& cam : result.rig.cameras) {
       fs::create_directories(staging / cam.name / "depth");
       fs::create_directories(staging / cam.name / "color");
@@ -207,15 +198,7 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
     write_file_atomic(staging / "ground_truth" / "wand.json", truth.dump() + "\n");
     write_rig(staging / "ground_truth" / "rig.json", result.true_rig);
     write_rig(staging / "rig.json", result.rig);
-    if (fs::exists(out_dir, ec)) fs::remove(out_dir);  // empty folder, checked above
-    fs::rename(staging, out_dir);
-  } catch (const fs::filesystem_error& e) {
-    fs::remove_all(staging, ec);
-    throw IoError(e.path1().string() + ": " + e.code().message());
-  } catch (...) {
-    fs::remove_all(staging, ec);
-    throw;
-  }
+  });
   return result;
 }
 

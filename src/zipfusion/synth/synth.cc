@@ -4,11 +4,11 @@
 #include <numbers>
 #include <random>
 #include <system_error>
-#include <unistd.h>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/io/image_io.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/core/rasterizer.h"
@@ -213,13 +213,7 @@ SyntheticView render_view(const TriangleMesh& subject, const Rig& true_rig, int 
 SynthResult write_synthetic_capture(const fs::path& out_dir, const SynthOptions& options,
                                     const std::function<void(int, int)>& progress) {
   options.validate();
-  std::error_code ec;
-  if (fs::exists(out_dir, ec) && !(fs::is_directory(out_dir, ec) && fs::is_empty(out_dir, ec))) {
-    throw InvalidInput(out_dir.string() + ": already exists and is not empty (choose a new --out)");
-  }
-  const fs::path parent = out_dir.has_parent_path() ? out_dir.parent_path() : fs::path(".");
-  fs::create_directories(parent, ec);
-  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
+  check_new_folder(out_dir, "--out");
 
   SynthResult result;
   result.true_rig = make_ring_rig(options);
@@ -227,12 +221,7 @@ SynthResult write_synthetic_capture(const fs::path& out_dir, const SynthOptions&
   const TriangleMesh first_subject = subject_mesh(options, 0);
   result.rig.volume = result.true_rig.volume = synthetic_capture_volume(first_subject);
 
-  std::string staging_name = out_dir.filename().string();
-  staging_name.insert(0, 1, '.');
-  staging_name += ".partial-" + std::to_string(::getpid());
-  const fs::path staging = parent / staging_name;
-  fs::remove_all(staging, ec);
-  try {
+  write_folder_atomic(out_dir, [&](const fs::path& staging) {
     for (const CameraModel& cam : result.rig.cameras) {
       fs::create_directories(staging / cam.name / "depth");
       fs::create_directories(staging / cam.name / "color");
@@ -252,15 +241,7 @@ SynthResult write_synthetic_capture(const fs::path& out_dir, const SynthOptions&
     }
     write_rig(staging / "ground_truth" / "rig.json", result.true_rig);
     write_rig(staging / "rig.json", result.rig);
-    if (fs::exists(out_dir, ec)) fs::remove(out_dir);  // empty folder, checked above
-    fs::rename(staging, out_dir);
-  } catch (const fs::filesystem_error& e) {
-    fs::remove_all(staging, ec);
-    throw IoError(e.path1().string() + ": " + e.code().message());
-  } catch (...) {
-    fs::remove_all(staging, ec);
-    throw;
-  }
+  });
   return result;
 }
 
