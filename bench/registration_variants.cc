@@ -28,14 +28,8 @@ struct Worst {
 };
 
 Worst worst_error(const std::vector<Rigid3d>& poses, const Rig& truth) {
-  std::vector<Rigid3d> true_poses;
-  for (const CameraModel& cam : truth.cameras) true_poses.push_back(cam.world_from_depth);
-  Worst w;
-  for (const RelativePoseError& e : relative_pose_errors(poses, true_poses)) {
-    w.mm = std::max(w.mm, e.translation_m * 1000);
-    w.deg = std::max(w.deg, e.rotation_deg);
-  }
-  return w;
+  const RelativePoseError worst = worst_relative_pose_error(poses, world_from_depth_poses(truth));
+  return {worst.translation_m * 1000, worst.rotation_deg};
 }
 
 }  // namespace
@@ -135,11 +129,7 @@ int main(int argc, char** argv) {
     std::printf("| %s | %.1f / %.3f | %.1f / %.3f | %.0f |\n", variant.name.c_str(), a.mm, a.deg, b.mm, b.deg, ms);
     std::fflush(stdout);
   }
-  const Worst start = worst_error([&] {
-    std::vector<Rigid3d> p;
-    for (const CameraModel& cam : perturbed.cameras) p.push_back(cam.world_from_depth);
-    return p;
-  }(), truth);
+  const Worst start = worst_error(world_from_depth_poses(perturbed), truth);
   std::printf("(rig.json itself: %.1f mm / %.3f deg)\n", start.mm, start.deg);
   return 0;
 }

@@ -19,12 +19,7 @@ using testing::line_count;
 class RegisterCli : public testing::CliTest {};
 
 double worst_mm(const Rig& rig, const Rig& truth) {
-  std::vector<Rigid3d> poses, true_poses;
-  for (const CameraModel& cam : rig.cameras) poses.push_back(cam.world_from_depth);
-  for (const CameraModel& cam : truth.cameras) true_poses.push_back(cam.world_from_depth);
-  double worst = 0;
-  for (const RelativePoseError& e : relative_pose_errors(poses, true_poses)) worst = std::max(worst, e.translation_m * 1000);
-  return worst;
+  return worst_relative_pose_error(world_from_depth_poses(rig), world_from_depth_poses(truth)).translation_m * 1000;
 }
 
 TEST_F(RegisterCli, WritesARefinedRigAndReportsEveryCamera) {

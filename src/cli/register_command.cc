@@ -68,10 +68,9 @@ void run_register(RegisterArgs& args) {
                 c > 0 && result.correspondences_after[c] == 0 ? "  (overlaps no camera: pose kept)" : "");
   }
   if (const auto& truth = capture.ground_truth_rig()) {
-    std::vector<Rigid3d> true_poses, start_poses;
-    for (const CameraModel& cam : truth->cameras) true_poses.push_back(cam.world_from_depth);
-    for (const CameraModel& cam : start.cameras) start_poses.push_back(cam.world_from_depth);
-    const auto before = relative_pose_errors(start_poses, true_poses), after = relative_pose_errors(result.world_from_depth, true_poses);
+    const std::vector<Rigid3d> true_poses = world_from_depth_poses(*truth);
+    const auto before = relative_pose_errors(world_from_depth_poses(start), true_poses);
+    const auto after = relative_pose_errors(result.world_from_depth, true_poses);
     std::printf("against ground_truth/rig.json (pose relative to %s):\n", start.cameras[0].name.c_str());
     for (size_t c = 1; c < before.size(); ++c) {
       std::printf("%-10s before %6.1f mm %6.3f deg   after %6.1f mm %6.3f deg\n", start.cameras[c].name.c_str(), before[c].translation_m * 1000,

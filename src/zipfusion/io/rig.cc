@@ -226,4 +226,11 @@ std::string format_rig(const Rig& rig) {
 
 void write_rig(const std::filesystem::path& path, const Rig& rig) { write_file_atomic(path, format_rig(rig)); }
 
+std::vector<Rigid3d> world_from_depth_poses(const Rig& rig) {
+  std::vector<Rigid3d> poses;
+  poses.reserve(rig.cameras.size());
+  for (const CameraModel& cam : rig.cameras) poses.push_back(cam.world_from_depth);
+  return poses;
+}
+
 }  // namespace zipfusion

@@ -49,4 +49,7 @@ std::string format_rig(const Rig& rig);
 //! Writes rig.json atomically.
 void write_rig(const std::filesystem::path& path, const Rig& rig);
 
+//! Every camera's world_from_depth, in rig order.
+std::vector<Rigid3d> world_from_depth_poses(const Rig& rig);
+
 }  // namespace zipfusion

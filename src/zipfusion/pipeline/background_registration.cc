@@ -13,7 +13,7 @@ void BackgroundRegistrationOptions::validate() const {
 BackgroundRegistration::BackgroundRegistration(const Rig& rig, const BackgroundRegistrationOptions& options) : rig_(rig), options_(options) {
   options_.validate();
   auto initial = std::make_shared<PublishedPoses>();
-  for (const CameraModel& cam : rig.cameras) initial->world_from_depth.push_back(cam.world_from_depth);
+  initial->world_from_depth = world_from_depth_poses(rig);
   published_ = std::move(initial);
   worker_ = std::jthread([this] { run(); });
 }

@@ -39,9 +39,7 @@ TEST(BackgroundRegistration, RefinesSamba4camWhileFramesArrive) {
   registration.wait_idle();
   const auto poses = registration.latest_poses();
   EXPECT_GE(poses->version, 4);
-  std::vector<Rigid3d> true_poses;
-  for (const CameraModel& cam : truth.cameras) true_poses.push_back(cam.world_from_depth);
-  for (const RelativePoseError& e : relative_pose_errors(poses->world_from_depth, true_poses)) {
+  for (const RelativePoseError& e : relative_pose_errors(poses->world_from_depth, world_from_depth_poses(truth))) {
     EXPECT_LT(e.translation_m * 1000, 2.0);
     EXPECT_LT(e.rotation_deg, 0.1);
   }

@@ -315,7 +315,7 @@ std::vector<Image<float>> registration_depth(const Rig& rig, const FrameSet& fra
 RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, const RegistrationOptions& options) {
   const int cameras = static_cast<int>(rig.cameras.size());
   Poses poses;
-  for (const CameraModel& cam : rig.cameras) poses.world_from_depth.push_back(cam.world_from_depth);
+  poses.world_from_depth = world_from_depth_poses(rig);
   RegistrationResult result;
   const int levels = options.coarsest_level - options.finest_level + 1;
   const int total_iterations = levels * options.iterations_per_level;
@@ -388,6 +388,15 @@ std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& 
                       rotation_angle_deg(true_first_from_cam.inverse() * first_from_cam)});
   }
   return errors;
+}
+
+RelativePoseError worst_relative_pose_error(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth) {
+  RelativePoseError worst;
+  for (const RelativePoseError& e : relative_pose_errors(world_from_depth, true_world_from_depth)) {
+    worst.translation_m = std::max(worst.translation_m, e.translation_m);
+    worst.rotation_deg = std::max(worst.rotation_deg, e.rotation_deg);
+  }
+  return worst;
 }
 
 }  // namespace zipfusion

@@ -87,6 +87,10 @@ struct RelativePoseError {
 };
 std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth);
 
+//! The largest translation and the largest rotation error of relative_pose_errors (each over all
+//! cameras, so possibly of different cameras).
+RelativePoseError worst_relative_pose_error(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth);
+
 //! Kinect v1 axial noise σ(z) = 1.2 mm + 1.9 mm·(z − 0.4 m)² (Nguyen, Izadi & Lovell 2012), metres.
 inline float kinect_axial_sigma(float z) { return 0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f); }
 

@@ -20,14 +20,8 @@ struct WorstError {
 };
 
 WorstError worst_error(const std::vector<Rigid3d>& poses, const Rig& truth) {
-  std::vector<Rigid3d> true_poses;
-  for (const CameraModel& cam : truth.cameras) true_poses.push_back(cam.world_from_depth);
-  WorstError worst;
-  for (const RelativePoseError& e : relative_pose_errors(poses, true_poses)) {
-    worst.mm = std::max(worst.mm, e.translation_m * 1000);
-    worst.deg = std::max(worst.deg, e.rotation_deg);
-  }
-  return worst;
+  const RelativePoseError worst = worst_relative_pose_error(poses, world_from_depth_poses(truth));
+  return {worst.translation_m * 1000, worst.rotation_deg};
 }
 
 // A synthetic ring: the true rig, the miscalibrated one, and the registration depth of `frames`
@@ -138,11 +132,7 @@ TEST(RegisterRig, TwoNoiseFreeCamerasRecoverAKnownOffset) {
   const RegistrationOptions options;
   const SyntheticRing ring = make_ring(6, 2, 1.0, 0.03, false, options, 2);  // neighbours 60° apart
   const RegistrationResult result = register_rig(ring.start, ring.depth, options);
-  const WorstError before = worst_error([&] {
-    std::vector<Rigid3d> p;
-    for (const CameraModel& cam : ring.start.cameras) p.push_back(cam.world_from_depth);
-    return p;
-  }(), ring.truth);
+  const WorstError before = worst_error(world_from_depth_poses(ring.start), ring.truth);
   const WorstError after = worst_error(result.world_from_depth, ring.truth);
   EXPECT_GT(before.mm, 20);
   EXPECT_LT(after.mm, 2.0);
