@@ -6,6 +6,7 @@
 //! CUDA port can call them as they are.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 
 namespace zipfusion {
@@ -52,5 +53,30 @@ inline Eigen::Vector3f unproject(const Intrinsics& k, float u, float v, float z)
   return {(u - static_cast<float>(k.cx)) * z / static_cast<float>(k.fx),
           (v - static_cast<float>(k.cy)) * z / static_cast<float>(k.fy), z};
 }
+
+//! The rays of a pinhole camera's pixels, expressed in another frame (`frame_from_cam`): the point
+//! at pixel (u, v) with depth z along the optical axis is origin + z·(ray0 + u·ray_du + v·ray_dv).
+//! Precomputed once per camera, it turns unproject-and-transform into a few multiply-adds per
+//! pixel with no division (per-pixel kernels). Undistorted pinhole, like unproject.
+struct PixelRays {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  Eigen::Vector3f ray0 = Eigen::Vector3f::UnitZ();
+  Eigen::Vector3f ray_du = Eigen::Vector3f::Zero();
+  Eigen::Vector3f ray_dv = Eigen::Vector3f::Zero();
+
+  PixelRays() = default;
+  PixelRays(const Intrinsics& k, const Eigen::Isometry3f& frame_from_cam) {
+    const Eigen::Matrix3f r = frame_from_cam.linear();
+    const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
+    origin = frame_from_cam.translation();
+    ray0 = r * Eigen::Vector3f(static_cast<float>(-k.cx / k.fx), static_cast<float>(-k.cy / k.fy), 1.0f);
+    ray_du = r.col(0) * inv_fx;
+    ray_dv = r.col(1) * inv_fy;
+  }
+
+  //! The ray of the pixels of row v: ray(u, v) = row_ray(v) + u·ray_du.
+  Eigen::Vector3f row_ray(int v) const { return ray0 + static_cast<float>(v) * ray_dv; }
+  Eigen::Vector3f point(int u, int v, float z) const { return origin + z * (row_ray(v) + static_cast<float>(u) * ray_du); }
+};
 
 }  // namespace zipfusion

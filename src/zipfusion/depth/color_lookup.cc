@@ -1,26 +1,29 @@
 #include "zipfusion/depth/color_lookup.h"
 
+#include <algorithm>
+
 namespace zipfusion {
 
 void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const ColorImage* color, std::vector<Rgb8>& out) {
   const int count = mesh.width * mesh.height;
   out.assign(count, kNoColor);
   if (color == nullptr || color->empty() || !camera.has_color()) return;
-  const Intrinsics& depth_k = camera.depth_intrinsics;
   const Intrinsics& color_k = *camera.color_intrinsics;
-  const Rigid3f color_from_depth = camera.color_from_depth.cast<float>();
-  for (int i = 0; i < count; ++i) {
-    const float z = mesh.depth[i];
-    if (z <= 0) continue;
-    const Eigen::Vector3f p_color = color_from_depth * unproject(depth_k, static_cast<float>(i % mesh.width), static_cast<float>(i / mesh.width), z);
-    if (p_color.z() <= 0) continue;
-    Eigen::Vector2f pixel;
-    if (color_k.has_distortion) {
-      pixel = project(color_k, p_color.cast<double>()).cast<float>();
-    } else {
-      pixel = project_pinhole(color_k, p_color);
+  // Depth pixels straight into the colour camera's frame.
+  const PixelRays rays(camera.depth_intrinsics, camera.color_from_depth.cast<float>());
+  const PixelBox box = mesh.box();
+  for (int v = box.v0; v < box.v1; ++v) {
+    const float* depth = mesh.depth.data() + static_cast<size_t>(v) * mesh.width;
+    Rgb8* colors = out.data() + static_cast<size_t>(v) * mesh.width;
+    const Eigen::Vector3f row_ray = rays.row_ray(v);
+    for (int u = box.u0; u < box.u1; ++u) {
+      const float z = depth[u];
+      if (!(z > 0)) continue;
+      const Eigen::Vector3f p_color = rays.origin + z * (row_ray + static_cast<float>(u) * rays.ray_du);
+      if (p_color.z() <= 0) continue;
+      const Eigen::Vector2f pixel = color_k.has_distortion ? project(color_k, p_color.cast<double>()).cast<float>() : project_pinhole(color_k, p_color);
+      colors[u] = sample_bilinear(*color, pixel.x(), pixel.y());
     }
-    out[i] = sample_bilinear(*color, pixel.x(), pixel.y());
   }
 }
 

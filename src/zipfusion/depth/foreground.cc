@@ -9,15 +9,29 @@ void ForegroundOptions::validate() const {
   if (!(max_depth_m > min_depth_m)) throw InvalidInput("max-depth: must exceed min-depth");
 }
 
+ForegroundParams::ForegroundParams(double depth_unit, const CameraModel& camera, const std::optional<Box3d>& volume,
+                                   const ForegroundOptions& options)
+    : depth_unit_m(static_cast<float>(depth_unit)),
+      min_depth_m(static_cast<float>(options.min_depth_m)),
+      max_depth_m(static_cast<float>(options.max_depth_m)),
+      crop(options.crop_to_volume && volume.has_value()),
+      world_rays(camera.depth_intrinsics, camera.world_from_depth.cast<float>()) {
+  if (crop) {
+    box_min = volume->min.cast<float>();
+    box_max = volume->max.cast<float>();
+  }
+}
+
 void extract_foreground(const DepthImage& raw, double depth_unit_m, const CameraModel& camera, const std::optional<Box3d>& volume,
                         const ForegroundOptions& options, Image<float>& depth_m) {
-  depth_m.resize(raw.width, raw.height);
-  const Rigid3f world_from_depth = camera.world_from_depth.cast<float>();
-  const Box3d* box = options.crop_to_volume && volume ? &*volume : nullptr;
-  const int count = static_cast<int>(raw.size());
-  for (int i = 0; i < count; ++i) {
-    depth_m.data[i] = foreground_depth(i, raw.data.data(), raw.width, static_cast<float>(depth_unit_m), static_cast<float>(options.min_depth_m),
-                                       static_cast<float>(options.max_depth_m), camera.depth_intrinsics, world_from_depth, box);
+  depth_m.width = raw.width;
+  depth_m.height = raw.height;
+  depth_m.data.resize(raw.size());
+  const ForegroundParams params(depth_unit_m, camera, volume, options);
+  for (int v = 0; v < raw.height; ++v) {
+    const unsigned short* in = raw.data.data() + static_cast<size_t>(v) * raw.width;
+    float* out = depth_m.data.data() + static_cast<size_t>(v) * raw.width;
+    for (int u = 0; u < raw.width; ++u) out[u] = in[u] == 0 ? 0.0f : foreground_depth(u, v, in[u], params);
   }
 }
 

@@ -20,14 +20,27 @@ struct ForegroundOptions {
   void validate() const;  // throws InvalidInput naming the field
 };
 
-//! Element function: depth in metres of pixel `index`, or 0 when it is not foreground.
-inline float foreground_depth(int index, const unsigned short* raw, int width, float depth_unit_m, float min_depth_m,
-                              float max_depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const Box3d* volume) {
-  const float z = raw[index] * depth_unit_m;
-  if (raw[index] == 0 || z < min_depth_m || z > max_depth_m) return 0.0f;
-  if (volume != nullptr) {
-    const Eigen::Vector3f p = world_from_depth * unproject(k, static_cast<float>(index % width), static_cast<float>(index / width), z);
-    if ((p.array() < volume->min.cast<float>().array()).any() || (p.array() > volume->max.cast<float>().array()).any()) return 0.0f;
+//! What foreground_depth needs of one camera, precomputed once per frame.
+struct ForegroundParams {
+  float depth_unit_m = 0.001f;
+  float min_depth_m = 0.4f;
+  float max_depth_m = 4.5f;
+  bool crop = false;  // test the world point against [box_min, box_max]
+  PixelRays world_rays;  // depth pixel → world
+  Eigen::Vector3f box_min = Eigen::Vector3f::Zero();
+  Eigen::Vector3f box_max = Eigen::Vector3f::Zero();
+
+  ForegroundParams(double depth_unit, const CameraModel& camera, const std::optional<Box3d>& volume, const ForegroundOptions& options);
+};
+
+//! Element function: depth in metres of pixel (u, v) with raw value `raw`, or 0 when it is not
+//! foreground.
+inline float foreground_depth(int u, int v, unsigned short raw, const ForegroundParams& params) {
+  const float z = static_cast<float>(raw) * params.depth_unit_m;
+  if (raw == 0 || z < params.min_depth_m || z > params.max_depth_m) return 0.0f;
+  if (params.crop) {
+    const Eigen::Vector3f p = params.world_rays.point(u, v, z);
+    if ((p.array() < params.box_min.array()).any() || (p.array() > params.box_max.array()).any()) return 0.0f;
   }
   return z;
 }

@@ -16,17 +16,35 @@ int DepthMesh::triangle_count() const {
 
 void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
                      DepthMesh& out) {
-  out.width = depth_m.width;
-  out.height = depth_m.height;
+  const int width = depth_m.width, height = depth_m.height;
+  out.width = width;
+  out.height = height;
   const int count = static_cast<int>(depth_m.size());
   out.depth.assign(depth_m.data.begin(), depth_m.data.end());
   out.points.resize(count);
-  out.triangles.resize(count);
+  out.triangles.assign(count, 0);
+  const PixelRays rays(k, world_from_depth);
+  PixelBox box{width, height, 0, 0};
+  for (int v = 0; v < height; ++v) {
+    const float* row = out.depth.data() + static_cast<size_t>(v) * width;
+    int first = 0, last = width - 1;
+    while (first < width && !(row[first] > 0)) ++first;
+    if (first == width) continue;
+    while (!(row[last] > 0)) --last;
+    box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, last + 1), v + 1};
+    // Points between the row's first and last depth, without a branch (where there is no depth
+    // the point is meaningless and never read).
+    Eigen::Vector3f* points = out.points.data() + static_cast<size_t>(v) * width;
+    const Eigen::Vector3f row_ray = rays.row_ray(v);
+    for (int u = first; u <= last; ++u) points[u] = rays.origin + row[u] * (row_ray + static_cast<float>(u) * rays.ray_du);
+  }
+  if (box.empty()) box = {};
+  out.depth_box = box;
+  // A triangle needs depth at its cell's pixel and at the one right of or below it.
   const float max_jump = static_cast<float>(options.max_depth_jump_m);
-  for (int i = 0; i < count; ++i) {
-    const float z = depth_m.data[i];
-    if (z > 0) out.points[i] = world_from_depth * unproject(k, static_cast<float>(i % out.width), static_cast<float>(i / out.width), z);
-    out.triangles[i] = sdc_cell(i, out.depth.data(), out.width, out.height, max_jump);
+  for (int v = box.v0; v < box.v1; ++v) {
+    std::uint8_t* bits = out.triangles.data() + static_cast<size_t>(v) * width;
+    for (int u = box.u0; u < box.u1; ++u) bits[u] = sdc_cell(u, v, out.depth.data(), width, height, max_jump);
   }
 }
 

@@ -34,6 +34,12 @@ struct SdcOptions {
   void validate() const;  // throws InvalidInput naming the field
 };
 
+//! Columns [u0, u1) and rows [v0, v1) of an image.
+struct PixelBox {
+  int u0 = 0, v0 = 0, u1 = 0, v1 = 0;
+  bool empty() const { return u1 <= u0 || v1 <= v0; }
+};
+
 //! One camera's triangulated depth map. Thread safety: plain data.
 struct DepthMesh {
   int width = 0;
@@ -41,14 +47,21 @@ struct DepthMesh {
   std::vector<float> depth;                // per pixel, metres along the camera axis; 0 = none
   std::vector<Eigen::Vector3f> points;     // per pixel, world coordinates (valid where depth > 0)
   std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags
+  // Every pixel with depth lies in this box (a person fills a fraction of a depth image, and
+  // per-pixel work outside it is skipped). Set by triangulate_sdc; the default is the whole image.
+  PixelBox depth_box{0, 0, 1 << 30, 1 << 30};
 
   int triangle_count() const;
+  //! depth_box clipped to the image.
+  PixelBox box() const {
+    return {std::max(depth_box.u0, 0), std::max(depth_box.v0, 0), std::min(depth_box.u1, width), std::min(depth_box.v1, height)};
+  }
 };
 
-//! Element function: the triangle bits of pixel `index` from the depth map.
-inline std::uint8_t sdc_cell(int index, const float* depth, int width, int height, float max_jump) {
-  const int u = index % width, v = index / width;
+//! Element function: the triangle bits of pixel (u, v) from the depth map.
+inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int height, float max_jump) {
   if (u >= width - 1 || v >= height - 1) return 0;
+  const int index = v * width + u;
   const float p = depth[index], r = depth[index + 1], b = depth[index + width], d = depth[index + width + 1];
   auto close = [max_jump](float a, float c) { return (a > c ? a - c : c - a) < max_jump; };
   std::uint8_t bits = 0;

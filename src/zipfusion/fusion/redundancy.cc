@@ -261,18 +261,29 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
   coarse.width = (fine.width - 1) / step + 1;
   coarse.height = (fine.height - 1) / step + 1;
   const int count = coarse.width * coarse.height;
-  coarse.depth.resize(count);
+  coarse.depth.assign(count, 0.0f);
   coarse.points.resize(count);
-  coarse.triangles.resize(count);
-  for (int v = 0; v < coarse.height; ++v) {
-    for (int u = 0; u < coarse.width; ++u) {
-      const int source = v * step * fine.width + u * step;
-      coarse.depth[v * coarse.width + u] = fine.depth[source];
-      coarse.points[v * coarse.width + u] = fine.points[source];
+  coarse.triangles.assign(count, 0);
+  // The coarse pixels whose fine pixel lies in the fine mesh's depth box.
+  const PixelBox fine_box = fine.box();
+  if (fine_box.empty()) {
+    coarse.depth_box = {};
+    return;
+  }
+  const PixelBox box{(fine_box.u0 + step - 1) / step, (fine_box.v0 + step - 1) / step, (fine_box.u1 - 1) / step + 1,
+                     (fine_box.v1 - 1) / step + 1};
+  coarse.depth_box = box;
+  for (int v = box.v0; v < box.v1; ++v) {
+    const size_t source_row = static_cast<size_t>(v) * step * fine.width;
+    for (int u = box.u0; u < box.u1; ++u) {
+      coarse.depth[v * coarse.width + u] = fine.depth[source_row + u * step];
+      coarse.points[v * coarse.width + u] = fine.points[source_row + u * step];
     }
   }
   const float threshold = max_depth_jump * static_cast<float>(step);
-  for (int i = 0; i < count; ++i) coarse.triangles[i] = sdc_cell(i, coarse.depth.data(), coarse.width, coarse.height, threshold);
+  for (int v = box.v0; v < box.v1; ++v) {
+    for (int u = box.u0; u < box.u1; ++u) coarse.triangles[v * coarse.width + u] = sdc_cell(u, v, coarse.depth.data(), coarse.width, coarse.height, threshold);
+  }
 }
 
 int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const DepthMesh& coarse, DepthMesh& fine) {
