@@ -50,7 +50,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     s.stamp[id] = s.current;
     const int cell = cell_of(id);
     if (!(mesh.triangles[cell] & bit_of(id))) return;
-    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit_of(id));
+    const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, bit_of(id)));
     if (!may_see_point(b, centre, 2 * distance) || !has_triangle_near(b, centre, distance, kSeamWindow)) return;
     s.queue.push_back(id);
     s.taken.push_back(id);
@@ -62,13 +62,8 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
   for (int id : b_boundary) {
     const int cell = cell_of(id);
     if (!mask_b.covers(cell, other.width, b.level) || !is_boundary_triangle(other.triangles.data(), cell, other.width, other.height, bit_of(id))) continue;
-    Eigen::Vector2f pixel;
-    float depth = 0;
-    if (!project_world_point(triangle_centre(other, cell, bit_of(id)), a.depth_from_world, a.intrinsics, pixel, depth)) continue;
-    const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-    if (u < 0 || v < 0 || u >= mesh.width - 1 || v >= mesh.height - 1) continue;
-    const int under = v * mesh.width + u;
-    if (!mesh.triangles[under]) continue;
+    const int under = project_into(a, triangle_centre(other, cell, bit_of(id))).cell;
+    if (under < 0 || !mesh.triangles[under]) continue;
     visit(triangle_id(under, kUpperTriangle));
     visit(triangle_id(under, kLowerTriangle));
   }
@@ -109,7 +104,8 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
       if (s.stamp[p] == s.current) continue;
       s.stamp[p] = s.current;
       if (!pixel_has_triangle(mesh, p) && view.interior != nullptr) {
-        if (owner_is_other(view, p, other, mesh.points[p], 2 * distance) && has_triangle_near(other, mesh.points[p], distance)) continue;
+        const ViewPoint point = project_into(other, mesh.points[p]);
+        if (owner_is_other(view, p, other, point, 2 * distance) && has_triangle_near(other, point, distance)) continue;
       }
       s.seam_index[p] = static_cast<int>(seam.vertices.size());
       seam.vertices.push_back({view.camera, p});
@@ -162,20 +158,16 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
 
 }  // namespace
 
-bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance) {
-  Eigen::Vector2f pixel;
-  float depth = 0;
-  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return false;
+bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance) {
+  if (p.cell < 0) return false;
   const DepthMesh& mesh = *view.mesh;
-  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-  if (u < 0 || v < 0 || u >= mesh.width - 1 || v >= mesh.height - 1) return false;
-  const int cell = v * mesh.width + u;
-  const TriangleBit bit = (pixel.x() - u) + (pixel.y() - v) < 1.0f ? kUpperTriangle : kLowerTriangle;
-  if (!(mesh.triangles[cell] & bit)) return false;
+  const float fu = p.x - std::floor(p.x), fv = p.y - std::floor(p.y);
+  const TriangleBit bit = fu + fv < 1.0f ? kUpperTriangle : kLowerTriangle;
+  if (!(mesh.triangles[p.cell] & bit)) return false;
   int pixels[3];
-  triangle_pixels(cell, mesh.width, bit, pixels);
+  triangle_pixels(p.cell, mesh.width, bit, pixels);
   const float mean_depth = (mesh.depth[pixels[0]] + mesh.depth[pixels[1]] + mesh.depth[pixels[2]]) / 3.0f;
-  return std::abs(mean_depth - depth) < tolerance;
+  return std::abs(mean_depth - p.in_camera.z()) < tolerance;
 }
 
 Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
@@ -263,7 +255,10 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
     if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) continue;
     const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
     // Over a kept triangle of either mesh: the seam would double the surface there.
-    if (covered_by_triangle(a, centroid, options.clipping_distance) || covered_by_triangle(b, centroid, options.clipping_distance)) continue;
+    if (covered_by_triangle(a, project_into(a, centroid), options.clipping_distance) ||
+        covered_by_triangle(b, project_into(b, centroid), options.clipping_distance)) {
+      continue;
+    }
     // CGAL's faces are counter-clockwise in the 2-D coordinates; with image-like axes (y down) a
     // face towards the viewer is clockwise there, like the SDC triangles. Flipping every face
     // orients the whole seam consistently, slivers included (a 3-D normal test would not).

@@ -52,9 +52,9 @@ struct SeamScratch {
   std::vector<int> boundary;
 };
 
-//! Element function: is point p covered by an existing triangle of `view` (the triangle under its
-//! projection, with a mean depth within `tolerance` of p's)?
-bool covered_by_triangle(const MeshView& view, const Eigen::Vector3f& p, float tolerance);
+//! Element function: is point p (projected into `view`) covered by an existing triangle of `view`
+//! (the triangle under its projection, with a mean depth within `tolerance` of p's)?
+bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance);
 
 //! Takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out of both meshes
 //! and returns the triangles that stitch them; the views' camera indices label the seam's

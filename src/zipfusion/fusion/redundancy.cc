@@ -28,7 +28,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     if (!(mesh.triangles[cell] & bit)) continue;
     if (!mask.covers(cell, mesh.width, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
-    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
+    const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, bit));
     if (owner_is_other(a, cell, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
   ++s.current_stamp;
@@ -78,39 +78,33 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
 namespace {
 
 // Does b have, at one of the 2×2 pixels around p's projection, depth within `depth_tolerance` of
-// p's, or (when `no_depth_counts`) no depth at all? Optionally returns the cell p projects to.
-bool depth_near_projection(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, bool no_depth_counts, int* cell) {
-  Eigen::Vector2f pixel;
-  float depth = 0;
-  if (!project_world_point(p, b.depth_from_world, b.intrinsics, pixel, depth)) return false;
-  const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-  if (u < 0 || v < 0 || u >= b.mesh->width - 1 || v >= b.mesh->height - 1) return false;
-  const int base = v * b.mesh->width + u;
-  if (cell != nullptr) *cell = base;
-  for (int index : {base, base + 1, base + b.mesh->width, base + b.mesh->width + 1}) {
-    const float z = b.mesh->depth[index];
-    if ((no_depth_counts && z <= 0) || std::abs(z - depth) < depth_tolerance) return true;
+// p's, or (when `no_depth_counts`) no depth at all?
+bool depth_near_projection(const MeshView& b, const ViewPoint& p, float depth_tolerance, bool no_depth_counts) {
+  if (p.cell < 0) return false;
+  const float* depth = b.mesh->depth.data() + p.cell;
+  const int width = b.mesh->width;
+  for (const float z : {depth[0], depth[1], depth[width], depth[width + 1]}) {
+    if ((no_depth_counts && z <= 0) || std::abs(z - p.in_camera.z()) < depth_tolerance) return true;
   }
   return false;
 }
 
 // Does b see a surface at p? Unlike may_see_point, a pixel without depth does not count.
-bool may_see_surface(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
-  return depth_near_projection(b, p, depth_tolerance, false, nullptr);
+bool may_see_surface(const MeshView& b, const ViewPoint& p, float depth_tolerance) {
+  return depth_near_projection(b, p, depth_tolerance, false);
 }
 
 }  // namespace
 
-bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell) {
-  return depth_near_projection(b, p, depth_tolerance, true, cell);  // no depth: cannot tell
+bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance) {
+  return depth_near_projection(b, p, depth_tolerance, true);  // no depth: cannot tell
 }
 
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance) {
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const ViewPoint& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
   // for b's triangles near p is skipped.
-  int b_cell = 0;
-  if (!may_see_point(b, p, depth_tolerance, &b_cell)) return false;
-  const float mine = (*a.interior)[cell], theirs = (*b.interior)[b_cell];
+  if (!may_see_point(b, p, depth_tolerance)) return false;
+  const float mine = (*a.interior)[cell], theirs = (*b.interior)[p.cell];
   return theirs > mine || (theirs == mine && b.camera < a.camera);
 }
 
@@ -161,32 +155,47 @@ void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vec
   }
 }
 
-bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window) {
-  Eigen::Vector2f pixel;
-  float depth = 0;
-  if (!project_world_point(p, view.depth_from_world, view.intrinsics, pixel, depth)) return false;
+bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance, int max_window) {
+  const Eigen::Vector3f& q = p.in_camera;
+  if (!(q.z() > 0) || !(std::abs(p.x) < 1e6f && std::abs(p.y) < 1e6f)) return false;
   const DepthMesh& mesh = *view.mesh;
-  const int window = std::clamp(static_cast<int>(std::ceil(distance * view.intrinsics.fx / depth)), 1, max_window);
+  const float fx = static_cast<float>(view.intrinsics.fx), fy = static_cast<float>(view.intrinsics.fy);
+  const float cx = static_cast<float>(view.intrinsics.cx), cy = static_cast<float>(view.intrinsics.cy);
+  const int window = std::clamp(static_cast<int>(std::ceil(distance * fx / q.z())), 1, max_window);
   // Triangle centres sit at 1/3 and 2/3 of a cell, so the cells whose index is within the window
   // of floor(pixel) hold every centre within `window` pixels. The same surface is usually found
   // in the first rings, so rings are searched from the centre outwards.
-  const int cu = static_cast<int>(std::floor(pixel.x())), cv = static_cast<int>(std::floor(pixel.y()));
-  const int last_u = mesh.width - 2, last_v = mesh.height - 2;
+  const int cu = static_cast<int>(std::floor(p.x)), cv = static_cast<int>(std::floor(p.y));
+  const int width = mesh.width, last_u = mesh.width - 2, last_v = mesh.height - 2;
   // No cell of ring r is farther than r·√2 from the centre cell, so the rings nearer than the
   // nearest cell with a triangle (exterior distance, a chamfer estimate within 5 %) are empty.
   int first_ring = 0;
-  if (view.exterior != nullptr && cu >= 0 && cv >= 0 && cu <= last_u && cv <= last_v) {
-    first_ring = static_cast<int>(std::ceil(0.95f * (*view.exterior)[cv * mesh.width + cu] / std::numbers::sqrt2_v<float>)) - 1;
+  if (view.exterior != nullptr && p.cell >= 0) {
+    first_ring = static_cast<int>(std::ceil(0.95f * (*view.exterior)[p.cell] / std::numbers::sqrt2_v<float>)) - 1;
     if (first_ring > window) return false;
   }
   const float distance2 = distance * distance;
+  const float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy, third = 1.0f / 3.0f;
+  const float* depth = mesh.depth.data();
+  const std::uint8_t* triangles = mesh.triangles.data();
+  // Is the centre of a triangle with mean depth zc, whose centre lies `x_extra`, `y_extra` (in
+  // depth-weighted pixels) right of and below the cell's pixel, within the distance?
+  auto centre_near = [&](int u, int v, float zc, float x_extra, float y_extra) {
+    const float dz = zc - q.z();
+    if (dz * dz >= distance2) return false;
+    const float dx = ((static_cast<float>(u) - cx) * zc + x_extra) * inv_fx - q.x();
+    const float dy = ((static_cast<float>(v) - cy) * zc + y_extra) * inv_fy - q.y();
+    return dx * dx + dy * dy + dz * dz < distance2;
+  };
   auto cell_has_near = [&](int u, int v) {
     if (u < 0 || v < 0 || u > last_u || v > last_v) return false;
-    const int cell = v * mesh.width + u;
-    const std::uint8_t bits = mesh.triangles[cell];
+    const int cell = v * width + u;
+    const std::uint8_t bits = triangles[cell];
     if (!bits) return false;
-    return ((bits & kUpperTriangle) && (triangle_centre(mesh, cell, kUpperTriangle) - p).squaredNorm() < distance2) ||
-           ((bits & kLowerTriangle) && (triangle_centre(mesh, cell, kLowerTriangle) - p).squaredNorm() < distance2);
+    const float z00 = depth[cell], z10 = depth[cell + 1], z01 = depth[cell + width], z11 = depth[cell + width + 1];
+    // Upper (p, b, r): centre x = ((u − cx)·3zc + z10) / 3fx; lower (r, b, d) likewise.
+    return ((bits & kUpperTriangle) && centre_near(u, v, (z00 + z01 + z10) * third, z10 * third, z01 * third)) ||
+           ((bits & kLowerTriangle) && centre_near(u, v, (z10 + z01 + z11) * third, (z10 + z11) * third, (z01 + z11) * third));
   };
   if (first_ring <= 0 && cell_has_near(cu, cv)) return true;
   for (int ring = std::max(1, first_ring); ring <= window; ++ring) {
@@ -202,24 +211,21 @@ bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float dis
 }
 
 double overlap_share(const MeshView& a, const MeshView& b, float distance) {
-  // Every other cell is enough for a share; points that project outside b's coverage (interior
-  // distance 0 there) are counted without a search.
+  // Every other cell is enough for a share; points where b sees no surface near their depth
+  // (outside its image, or another surface in front or behind) are counted without a search.
   const DepthMesh& mesh = *a.mesh;
   int total = 0, near = 0;
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; cell += 2) {
-    const std::uint8_t bits = mesh.triangles[cell];
-    if (!bits) continue;
-    const TriangleBit bit = (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle;
-    ++total;
-    const Eigen::Vector3f centre = triangle_centre(mesh, cell, bit);
-    Eigen::Vector2f pixel;
-    float depth = 0;
-    if (!project_world_point(centre, b.depth_from_world, b.intrinsics, pixel, depth)) continue;
-    const int u = static_cast<int>(std::floor(pixel.x())), v = static_cast<int>(std::floor(pixel.y()));
-    if (u < 0 || v < 0 || u >= b.mesh->width || v >= b.mesh->height) continue;
-    if (b.interior != nullptr && (*b.interior)[v * b.mesh->width + u] <= 0) continue;
-    near += has_triangle_near(b, centre, distance);
+  const PixelBox box = mesh.box();
+  for (int v = box.v0; v < box.v1; ++v) {
+    for (int u = box.u0 + ((v + box.u0) & 1); u < box.u1; u += 2) {
+      const int cell = v * mesh.width + u;
+      const std::uint8_t bits = mesh.triangles[cell];
+      if (!bits) continue;
+      ++total;
+      const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
+      if (!may_see_surface(b, centre, 2 * distance)) continue;
+      near += has_triangle_near(b, centre, distance);
+    }
   }
   return total ? static_cast<double>(near) / total : 0.0;
 }
@@ -250,7 +256,7 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
   mask.cells.assign(mesh.depth.size(), 0);
   const int cells = mesh.width * mesh.height;
   for (int cell = 0; cell < cells; ++cell) {
-    if (mesh.depth[cell] > 0 && may_see_surface(b, mesh.points[cell], depth_tolerance)) mask.cells[cell] = 255;
+    if (mesh.depth[cell] > 0 && may_see_surface(b, project_into(b, mesh.points[cell]), depth_tolerance)) mask.cells[cell] = 255;
   }
   cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
   cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));

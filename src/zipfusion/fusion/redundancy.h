@@ -41,6 +41,31 @@ struct MeshView {
   int level = 0;                                  // pyramid level: cells are 2^level pixels
 };
 
+//! A world point as a view sees it: in the view's camera frame, and the cell its projection falls
+//! in (the pixel up and left of it), or cell −1 when the point is behind the camera or its 2×2
+//! pixels are not all in the image. One projection serves all of a test's lookups.
+struct ViewPoint {
+  Eigen::Vector3f in_camera = Eigen::Vector3f::Zero();
+  float x = 0, y = 0;  // pixel coordinates at the view's level
+  int cell = -1;
+};
+
+//! Element function: projects world point p into `view`.
+inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) {
+  ViewPoint out;
+  out.in_camera = view.depth_from_world * p;
+  if (!(out.in_camera.z() > 0)) return out;
+  const float inv_z = 1.0f / out.in_camera.z();
+  out.x = static_cast<float>(view.intrinsics.fx) * out.in_camera.x() * inv_z + static_cast<float>(view.intrinsics.cx);
+  out.y = static_cast<float>(view.intrinsics.fy) * out.in_camera.y() * inv_z + static_cast<float>(view.intrinsics.cy);
+  // Compare as floats before converting: far outside points must not overflow the int.
+  if (!(out.x >= 0 && out.y >= 0 && out.x < static_cast<float>(view.mesh->width - 1) && out.y < static_cast<float>(view.mesh->height - 1))) {
+    return out;
+  }
+  out.cell = static_cast<int>(out.y) * view.mesh->width + static_cast<int>(out.x);
+  return out;
+}
+
 //! Where, coarsely, another camera sees the surface of a camera's mesh: per cell of a coarse view
 //! of the mesh, whether the other camera has depth close to the mesh's point there, dilated by
 //! one cell (so the window searches at the other mesh's border stay inside). Redundancy tests and
@@ -94,10 +119,13 @@ inline int triangle_neighbours(int id, int width, int height, int out[3]) {
   return n;
 }
 
-//! Element function: does `view` hold a triangle within `distance` of point p?
-//! Searches the cells around p's projection, wide enough to cover `distance` at p's depth (at
-//! most max_window cells each way).
-bool has_triangle_near(const MeshView& view, const Eigen::Vector3f& p, float distance, int max_window = 4);
+//! Element function: does `view` hold a triangle within `distance` of point p (projected by
+//! project_into)? Searches the cells around p's projection, wide enough to cover `distance` at p's
+//! depth (at most max_window cells each way). Centres are computed from the view's depth in its
+//! camera frame (the same points as in the world, one array read instead of three), and a
+//! triangle whose mean depth already differs by `distance` is rejected before its centre is
+//! formed.
+bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance, int max_window = 4);
 
 //! Calls f(id) for every existing triangle of `mesh`, in id order.
 template <typename F>
@@ -114,14 +142,14 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
 //! Element function: false when camera `b` certainly does not see point p: it is outside b's
 //! image, or every pixel next to its projection has a depth (of another surface) more than
 //! `depth_tolerance` from p's. Optionally returns the cell p projects to.
-bool may_see_point(const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance, int* cell = nullptr);
+bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
 //! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
 //! than `a`? `b` must see p (a pixel next to p's projection has p's depth within
 //! `depth_tolerance`, or no depth), and its interior distance there must exceed a's at the cell (ties to the
 //! lower camera index). Both meshes evaluate the same point the same way, so they meet without a
-//! gap.
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const Eigen::Vector3f& p, float depth_tolerance);
+//! gap. `p` is the point projected into b.
+bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
 //! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance` (estimated on
 //! every other cell).
