@@ -82,12 +82,15 @@ void BM_LookupColors(benchmark::State& state) {
 }
 BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
 
-void BM_CoverageDistances(benchmark::State& state) {
+// The border distance on the coarsest level (L = 2), as the zipper computes it.
+void BM_BorderDistance(benchmark::State& state) {
   const Frame& f = frame();
-  std::vector<float> interior, exterior;
-  for (auto _ : state) compute_coverage_distances(f.meshes[0], 3, interior, exterior);
+  DepthMesh coarse;
+  downsample_mesh(f.meshes[0], 2, 0.03f, coarse);
+  BorderDistance border;
+  for (auto _ : state) compute_border_distance(coarse, 2, 1, border);
 }
-BENCHMARK(BM_CoverageDistances)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BorderDistance)->Unit(benchmark::kMillisecond);
 
 void BM_DownsampleMesh(benchmark::State& state) {
   const Frame& f = frame();

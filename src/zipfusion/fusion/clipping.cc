@@ -103,9 +103,10 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
     for (int p : pixels) {
       if (s.stamp[p] == s.current) continue;
       s.stamp[p] = s.current;
-      if (!pixel_has_triangle(mesh, p) && view.interior != nullptr) {
+      if (!pixel_has_triangle(mesh, p)) {
         const ViewPoint point = project_into(other, mesh.points[p]);
-        if (owner_is_other(view, p, other, point, 2 * distance) && has_triangle_near(other, point, distance)) continue;
+        const float x = static_cast<float>(p % mesh.width), y = static_cast<float>(p / mesh.width);
+        if (owner_is_other(view, x, y, other, point, 2 * distance) && has_triangle_near(other, point, distance)) continue;
       }
       s.seam_index[p] = static_cast<int>(seam.vertices.size());
       seam.vertices.push_back({view.camera, p});

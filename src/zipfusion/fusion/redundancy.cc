@@ -29,7 +29,10 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     if (!mask.covers(cell, mesh.width, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
     const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, bit));
-    if (owner_is_other(a, cell, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
+    // The centre lies a third (upper) or two thirds (lower) into the cell.
+    const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
+    const float x = static_cast<float>(cell % mesh.width) + offset, y = static_cast<float>(cell / mesh.width) + offset;
+    if (owner_is_other(a, x, y, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
   ++s.current_stamp;
   s.next.clear();
@@ -100,58 +103,42 @@ bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance)
   return depth_near_projection(b, p, depth_tolerance, true);  // no depth: cannot tell
 }
 
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const ViewPoint& p, float depth_tolerance) {
+bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
   // for b's triangles near p is skipped.
-  if (!may_see_point(b, p, depth_tolerance)) return false;
-  const float mine = (*a.interior)[cell], theirs = (*b.interior)[p.cell];
+  if (b.border == nullptr || !may_see_point(b, p, depth_tolerance)) return false;
+  const float mine = a.border_distance(a_x, a_y), theirs = b.border_distance(p.x, p.y);
   return theirs > mine || (theirs == mine && b.camera < a.camera);
 }
 
-void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior) {
-  // Only the box around the cells with triangles is transformed (a person fills a quarter of a
-  // Kinect image), padded so that closing and the nearest-triangle distances inside it come out
-  // as on the whole image. Outside the box no triangle is within kFarPad cells, farther than any
-  // search window looks, so a large constant stands for the exterior distance there.
-  constexpr int kFarPad = 16;
-  constexpr float kFar = 1e6f;
-  const int cells = mesh.width * mesh.height;
-  int u0 = mesh.width, u1 = -1, v0 = mesh.height, v1 = -1;
-  for (int v = 0; v < mesh.height; ++v) {
-    const std::uint8_t* row = mesh.triangles.data() + v * mesh.width;
-    for (int u = 0; u < mesh.width; ++u) {
-      if (!row[u]) continue;
-      u0 = std::min(u0, u);
-      u1 = std::max(u1, u);
-      v0 = std::min(v0, v);
-      v1 = std::max(v1, v);
-    }
-  }
-  interior.assign(cells, 0.0f);
-  exterior.assign(cells, kFar);
-  if (u1 < 0) return;
-  const int pad = std::max(kFarPad, close_cells + 1);
-  const cv::Rect box(cv::Point(std::max(0, u0 - pad), std::max(0, v0 - pad)),
-                     cv::Point(std::min(mesh.width, u1 + 1 + pad), std::min(mesh.height, v1 + 1 + pad)));
+void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, BorderDistance& out) {
+  // Only the box around the cells with triangles is transformed (a person fills a fraction of a
+  // depth image), padded so that the closing inside it comes out as on the whole image.
+  out.width = mesh.width;
+  out.height = mesh.height;
+  out.level = level;
+  out.cells.assign(static_cast<size_t>(mesh.width) * mesh.height, 0.0f);
+  const PixelBox depth_box = mesh.box();
+  if (depth_box.empty()) return;
+  const int pad = close_cells + 1;
+  const cv::Rect box(cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
+                     cv::Point(std::min(mesh.width, depth_box.u1 + pad), std::min(mesh.height, depth_box.v1 + pad)));
   cv::Mat mask(box.height, box.width, CV_8UC1);
   for (int y = 0; y < box.height; ++y) {
     const std::uint8_t* row = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) mask.at<std::uint8_t>(y, x) = row[x] ? 255 : 0;
   }
-  cv::Mat distance;
-  cv::distanceTransform(~mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
-  for (int y = 0; y < box.height; ++y) {
-    std::copy_n(distance.ptr<float>(y), box.width, exterior.data() + (box.y + y) * mesh.width + box.x);
-  }
   if (close_cells > 0) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
     cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
   }
+  cv::Mat distance;
   cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
+  const float pixels_per_cell = static_cast<float>(1 << level);
   for (int y = 0; y < box.height; ++y) {
     const float* d = distance.ptr<float>(y);
     const int base = (box.y + y) * mesh.width + box.x;
-    for (int x = 0; x < box.width; ++x) interior[base + x] = mesh.triangles[base + x] ? d[x] : 0.0f;
+    for (int x = 0; x < box.width; ++x) out.cells[base + x] = mesh.triangles[base + x] ? d[x] * pixels_per_cell : 0.0f;
   }
 }
 
@@ -167,13 +154,6 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
   // in the first rings, so rings are searched from the centre outwards.
   const int cu = static_cast<int>(std::floor(p.x)), cv = static_cast<int>(std::floor(p.y));
   const int width = mesh.width, last_u = mesh.width - 2, last_v = mesh.height - 2;
-  // No cell of ring r is farther than r·√2 from the centre cell, so the rings nearer than the
-  // nearest cell with a triangle (exterior distance, a chamfer estimate within 5 %) are empty.
-  int first_ring = 0;
-  if (view.exterior != nullptr && p.cell >= 0) {
-    first_ring = static_cast<int>(std::ceil(0.95f * (*view.exterior)[p.cell] / std::numbers::sqrt2_v<float>)) - 1;
-    if (first_ring > window) return false;
-  }
   const float distance2 = distance * distance;
   const float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy, third = 1.0f / 3.0f;
   const float* depth = mesh.depth.data();
@@ -197,8 +177,8 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
     return ((bits & kUpperTriangle) && centre_near(u, v, (z00 + z01 + z10) * third, z10 * third, z01 * third)) ||
            ((bits & kLowerTriangle) && centre_near(u, v, (z10 + z01 + z11) * third, (z10 + z11) * third, (z01 + z11) * third));
   };
-  if (first_ring <= 0 && cell_has_near(cu, cv)) return true;
-  for (int ring = std::max(1, first_ring); ring <= window; ++ring) {
+  if (cell_has_near(cu, cv)) return true;
+  for (int ring = 1; ring <= window; ++ring) {
     if (cu + ring < 0 || cu - ring > last_u || cv + ring < 0 || cv - ring > last_v) return false;
     for (int d = -ring; d <= ring; ++d) {
       if (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring)) return true;

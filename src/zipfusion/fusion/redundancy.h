@@ -21,6 +21,7 @@
 //! split where both see equally well, the meshes meet there with no gap, and one mesh is never
 //! removed where the other does not take over.
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -30,15 +31,51 @@
 
 namespace zipfusion {
 
+//! How deep inside its own coverage a camera sees each point of its image: the distance from the
+//! border of its mesh (its silhouette, or a hole wider than the closing), in full-resolution
+//! pixels. Large where the camera sees the surface frontally and near, small at grazing angles;
+//! the camera with the larger value owns a surface that two cameras see. Computed once per frame
+//! on one (coarse) pyramid level and sampled bilinearly, so it is continuous over the image and
+//! the same at every level.
+struct BorderDistance {
+  std::vector<float> cells;  // per cell of `level`: distance of the cell's centre, full-resolution pixels; 0 off the mesh
+  int width = 0;
+  int height = 0;
+  int level = 0;
+};
+
+//! Fills `out` from `mesh`, a view at `level`: the distance transform of its cells with triangles,
+//! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border).
+void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, BorderDistance& out);
+
+//! Element function: the border distance at full-resolution pixel coordinates (x, y), bilinear
+//! between cell centres; 0 outside the image.
+inline float border_distance_at(const BorderDistance& d, float x, float y) {
+  const float scale = 1.0f / static_cast<float>(1 << d.level);
+  const float cx = x * scale - 0.5f, cy = y * scale - 0.5f;
+  if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(d.width) && cy < static_cast<float>(d.height))) return 0.0f;
+  const int u = static_cast<int>(std::floor(cx)), v = static_cast<int>(std::floor(cy));
+  const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
+  auto at = [&](int i, int j) { return i >= 0 && j >= 0 && i < d.width && j < d.height ? d.cells[j * d.width + i] : 0.0f; };
+  const float top = at(u, v) + fu * (at(u + 1, v) - at(u, v));
+  const float bottom = at(u, v + 1) + fu * (at(u + 1, v + 1) - at(u, v + 1));
+  return top + fv * (bottom - top);
+}
+
 //! One camera's mesh at one pyramid level and how to project into it.
 struct MeshView {
   DepthMesh* mesh = nullptr;
   Intrinsics intrinsics;       // of this level (focal length and centre scaled by 2^-level)
   Rigid3f depth_from_world = Rigid3f::Identity();
-  const std::vector<float>* interior = nullptr;  // per cell: distance to the mesh's border, cells
-  const std::vector<float>* exterior = nullptr;  // per cell: distance to the nearest cell with a triangle, cells
-  int camera = 0;                                 // breaks ownership ties
-  int level = 0;                                  // pyramid level: cells are 2^level pixels
+  const BorderDistance* border = nullptr;  // ownership; null: this view never owns what another sees
+  int camera = 0;                          // breaks ownership ties
+  int level = 0;                           // pyramid level: cells are 2^level pixels
+
+  //! The border distance at (x, y) in this level's pixel coordinates.
+  float border_distance(float x, float y) const {
+    const float scale = static_cast<float>(1 << level);
+    return border != nullptr ? border_distance_at(*border, x * scale, y * scale) : 0.0f;
+  }
 };
 
 //! A world point as a view sees it: in the view's camera frame, and the cell its projection falls
@@ -90,12 +127,6 @@ struct OverlapMask {
 //! is dilated by one cell.
 void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tolerance, OverlapMask& mask);
 
-//! Per cell of `mesh`: `interior`, the distance (in cells) to the nearest cell without triangles
-//! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border), 0 where no
-//! triangle; and `exterior`, the distance to the nearest cell with a triangle (0 on the mesh;
-//! beyond 16 cells from the triangles' bounding box, a large constant).
-void compute_coverage_distances(const DepthMesh& mesh, int close_cells, std::vector<float>& interior, std::vector<float>& exterior);
-
 //! Triangle id: cell index · 2 + (0 upper, 1 lower).
 inline int triangle_id(int cell, TriangleBit bit) { return cell * 2 + (bit == kLowerTriangle ? 1 : 0); }
 inline int cell_of(int id) { return id >> 1; }
@@ -144,12 +175,12 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
 //! `depth_tolerance` from p's. Optionally returns the cell p projects to.
 bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
-//! Element function: does `b` see the surface at point p, which lies in cell `cell` of `a`, better
-//! than `a`? `b` must see p (a pixel next to p's projection has p's depth within
-//! `depth_tolerance`, or no depth), and its interior distance there must exceed a's at the cell (ties to the
-//! lower camera index). Both meshes evaluate the same point the same way, so they meet without a
-//! gap. `p` is the point projected into b.
-bool owner_is_other(const MeshView& a, int cell, const MeshView& b, const ViewPoint& p, float depth_tolerance);
+//! Element function: does `b` see the surface at point p, which lies at (a_x, a_y) in a's image
+//! (this level's pixel coordinates), better than `a`? `b` must see p (a pixel next to p's
+//! projection has p's depth within `depth_tolerance`, or no depth), and its border distance there
+//! must exceed a's (ties to the lower camera index). Both meshes evaluate the same point the same
+//! way, so they meet without a gap. `p` is the point projected into b.
+bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
 //! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance` (estimated on
 //! every other cell).

@@ -63,8 +63,7 @@ struct ZipperResult {
 struct ZipperScratch {
   struct Camera {
     std::vector<DepthMesh> levels;                       // levels 1..L (index level−1)
-    std::vector<std::vector<float>> interior;            // levels 0..L: distance to the border, cells
-    std::vector<std::vector<float>> exterior;            // levels 0..L: distance to the mesh, cells
+    BorderDistance border;                               // on the coarsest level, for ownership at every level
     std::vector<std::vector<std::uint8_t>> bits_before;  // per level 1..L, the SDC bits before any removal
     FrbrScratch frbr;
     SeamScratch seam;
