@@ -43,7 +43,6 @@ struct Seam {
 struct SeamScratch {
   std::vector<std::uint32_t> stamp;  // per triangle id, then per pixel
   std::uint32_t current = 0;
-  std::vector<int> queue;
   std::vector<int> taken;
   std::vector<int> seam_index;  // per pixel: index in Seam::vertices (valid where stamped)
   // Candidate boundary triangles, the seeds of the seams: set once per frame before clipping by
