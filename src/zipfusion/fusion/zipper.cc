@@ -180,72 +180,127 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   for (const Seam& seam : seams) result.stats.seam_taken += seam.triangles_taken;
   result.stats.clipping_ms = ms_since(t);
 
-  // Assembly: kept triangles and seam triangles over shared pixel vertices. A seam triangle may
-  // not reuse a directed edge that a kept (or earlier seam) triangle already has: that would put
-  // it on the same side of the edge as that triangle, overlapping it, and make the edge
-  // non-manifold. Only edges between seam vertices need checking.
+  // Assembly: kept triangles and seam triangles over shared pixel vertices, each camera's part
+  // written by its own thread at offsets from a prefix sum. A seam triangle may not reuse a
+  // directed edge that a kept (or earlier seam) triangle already has: that would put it on the
+  // same side of the edge as that triangle, overlapping it, and make the edge non-manifold. Only
+  // edges between seam vertices need checking.
   t = Clock::now();
   TriangleMesh& mesh = result.mesh;
-  for (int c : active) scratch.cameras[c].vertex_of_pixel.assign(cameras[c].mesh->triangles.size(), -1);
-  auto vertex = [&](int camera, int pixel) {
-    int& index = scratch.cameras[camera].vertex_of_pixel[pixel];
-    if (index < 0) {
-      index = static_cast<int>(mesh.positions.size());
-      mesh.positions.push_back(cameras[camera].mesh->points[pixel]);
-      mesh.colors.push_back(cameras[camera].colors ? (*cameras[camera].colors)[pixel] : Rgb8{128, 128, 128});
+  // Each camera's used pixels (by kept triangles or seams), numbered in pixel order.
+  std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
+    ZipperScratch::Camera& s = scratch.cameras[c];
+    const DepthMesh& depth_mesh = *cameras[c].mesh;
+    s.used.assign(depth_mesh.triangles.size(), 0);
+    s.vertex_of_pixel.resize(depth_mesh.triangles.size());
+    int triangles = 0;
+    for_each_triangle(depth_mesh, [&](const int* p) {
+      s.used[p[0]] = s.used[p[1]] = s.used[p[2]] = 1;
+      ++triangles;
+    });
+    for (const Seam& seam : seams) {
+      for (const PixelVertex& v : seam.vertices) {
+        if (v.camera == c) s.used[v.pixel] = 1;
+      }
     }
-    return index;
-  };
-  std::vector<std::vector<int>> seam_global(seams.size());
-  for (size_t i = 0; i < seams.size(); ++i) {
-    for (const PixelVertex& v : seams[i].vertices) seam_global[i].push_back(vertex(v.camera, v.pixel));
+    int vertices = 0;
+    const PixelBox box = depth_mesh.box();
+    for (int v = box.v0; v < box.v1; ++v) {
+      for (int u = box.u0; u < box.u1; ++u) {
+        const int pixel = v * depth_mesh.width + u;
+        if (s.used[pixel]) s.vertex_of_pixel[pixel] = vertices++;
+      }
+    }
+    vertex_count[c] = vertices;
+    triangle_count[c] = triangles;
+  }, options.num_threads);
+  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
+  for (int c = 0; c < camera_count; ++c) {
+    vertex_offset[c + 1] = vertex_offset[c] + vertex_count[c];
+    triangle_offset[c + 1] = triangle_offset[c] + triangle_count[c];
   }
+  size_t seam_triangles = 0;
+  for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
+  mesh.positions.resize(vertex_offset[camera_count]);
+  mesh.colors.resize(vertex_offset[camera_count]);
+  mesh.triangles.resize(triangle_offset[camera_count]);
+  mesh.triangles.reserve(mesh.triangles.size() + seam_triangles);
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
+    const ZipperScratch::Camera& s = scratch.cameras[c];
+    const DepthMesh& depth_mesh = *cameras[c].mesh;
+    const int first = vertex_offset[c];
+    const PixelBox box = depth_mesh.box();
+    for (int v = box.v0; v < box.v1; ++v) {
+      for (int u = box.u0; u < box.u1; ++u) {
+        const int pixel = v * depth_mesh.width + u;
+        if (!s.used[pixel]) continue;
+        const int index = first + s.vertex_of_pixel[pixel];
+        mesh.positions[index] = depth_mesh.points[pixel];
+        mesh.colors[index] = cameras[c].colors ? (*cameras[c].colors)[pixel] : Rgb8{128, 128, 128};
+      }
+    }
+    Eigen::Vector3i* out = mesh.triangles.data() + triangle_offset[c];
+    for_each_triangle(depth_mesh, [&](const int* p) {
+      *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
+    });
+  }, options.num_threads);
+  auto vertex = [&](const PixelVertex& v) { return vertex_offset[v.camera] + scratch.cameras[v.camera].vertex_of_pixel[v.pixel]; };
   // Directed edges between seam vertices, per seam vertex: its outgoing edges' far ends (a
   // vertex has a handful). Other vertices are -1 in seam_slot.
   std::vector<int>& seam_slot = scratch.seam_slot;
   std::vector<std::vector<int>>& outgoing = scratch.outgoing;
   seam_slot.assign(mesh.positions.size(), -1);
-  int seam_vertices = 0;
-  for (const auto& ids : seam_global) {
-    for (int id : ids) {
-      if (seam_slot[id] < 0) seam_slot[id] = seam_vertices++;
+  std::vector<PixelVertex> seam_vertices;
+  for (const Seam& seam : seams) {
+    for (const PixelVertex& v : seam.vertices) {
+      int& slot = seam_slot[vertex(v)];
+      if (slot < 0) {
+        slot = static_cast<int>(seam_vertices.size());
+        seam_vertices.push_back(v);
+      }
     }
   }
-  if (static_cast<int>(outgoing.size()) < seam_vertices) outgoing.resize(seam_vertices);
-  for (int i = 0; i < seam_vertices; ++i) outgoing[i].clear();
-  auto slot = [&](int id) { return id < static_cast<int>(seam_slot.size()) ? seam_slot[id] : -1; };
+  if (outgoing.size() < seam_vertices.size()) outgoing.resize(seam_vertices.size());
+  for (size_t i = 0; i < seam_vertices.size(); ++i) outgoing[i].clear();
+  // The kept triangles' edges from each seam vertex: those of the (up to six) triangles around its pixel.
+  for (size_t i = 0; i < seam_vertices.size(); ++i) {
+    const PixelVertex& sv = seam_vertices[i];
+    const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
+    const int u = sv.pixel % depth_mesh.width, v = sv.pixel / depth_mesh.width;
+    for (int cv = std::max(0, v - 1); cv <= std::min(v, depth_mesh.height - 2); ++cv) {
+      for (int cu = std::max(0, u - 1); cu <= std::min(u, depth_mesh.width - 2); ++cu) {
+        const int cell = cv * depth_mesh.width + cu;
+        for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+          if (!(depth_mesh.triangles[cell] & bit)) continue;
+          int pixels[3];
+          triangle_pixels(cell, depth_mesh.width, bit, pixels);
+          for (int k = 0; k < 3; ++k) {
+            if (pixels[k] != sv.pixel) continue;
+            const int to = vertex({sv.camera, pixels[(k + 1) % 3]});
+            if (seam_slot[to] >= 0) outgoing[i].push_back(to);
+          }
+        }
+      }
+    }
+  }
   auto has_edge = [&](int from, int to) {
-    const int s_from = slot(from);
-    if (s_from < 0 || slot(to) < 0) return false;
+    const int s_from = seam_slot[from];
+    if (s_from < 0 || seam_slot[to] < 0) return false;
     const std::vector<int>& ends = outgoing[s_from];
     return std::find(ends.begin(), ends.end(), to) != ends.end();
   };
-  auto note_edges = [&](const Eigen::Vector3i& tri) {
-    for (int k = 0; k < 3; ++k) {
-      const int from = tri[k], to = tri[(k + 1) % 3];
-      if (slot(from) >= 0 && slot(to) >= 0) outgoing[slot(from)].push_back(to);
-    }
-  };
-  int kept = 0;
-  for (int c : active) kept += cameras[c].mesh->triangle_count();
-  size_t seam_triangles = 0;
-  for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
-  mesh.triangles.reserve(kept + seam_triangles);
-  for (int c : active) {
-    for_each_triangle(*cameras[c].mesh, [&](const int* p) {
-      mesh.triangles.emplace_back(vertex(c, p[0]), vertex(c, p[1]), vertex(c, p[2]));
-      note_edges(mesh.triangles.back());
-    });
-  }
-  for (size_t i = 0; i < seams.size(); ++i) {
-    for (const Eigen::Vector3i& local : seams[i].triangles) {
-      const Eigen::Vector3i tri(seam_global[i][local[0]], seam_global[i][local[1]], seam_global[i][local[2]]);
+  for (const Seam& seam : seams) {
+    for (const Eigen::Vector3i& local : seam.triangles) {
+      const Eigen::Vector3i tri(vertex(seam.vertices[local[0]]), vertex(seam.vertices[local[1]]), vertex(seam.vertices[local[2]]));
       if (has_edge(tri[0], tri[1]) || has_edge(tri[1], tri[2]) || has_edge(tri[2], tri[0])) {
         ++result.stats.seam_rejected;
         continue;
       }
       mesh.triangles.push_back(tri);
-      note_edges(tri);
+      for (int k = 0; k < 3; ++k) outgoing[seam_slot[tri[k]]].push_back(tri[(k + 1) % 3]);
       ++result.stats.seam_added;
     }
   }

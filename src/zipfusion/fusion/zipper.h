@@ -67,7 +67,8 @@ struct ZipperScratch {
     std::vector<std::vector<std::uint8_t>> bits_before;  // per level 1..L, the SDC bits before any removal
     FrbrScratch frbr;
     SeamScratch seam;
-    std::vector<int> vertex_of_pixel;
+    std::vector<std::uint8_t> used;       // assembly: per pixel, whether a kept or seam triangle uses it
+    std::vector<int> vertex_of_pixel;     // assembly: per used pixel, its index among the camera's vertices
   };
   std::vector<Camera> cameras;
   // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
