@@ -45,6 +45,7 @@ void next_stamp(SeamScratch& s, size_t size) {
 void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_boundary, float distance, const OverlapMask& mask_a,
                          const OverlapMask& mask_b, SeamScratch& s) {
   const DepthMesh& mesh = *a.mesh;
+  const Rigid3f b_from_a_camera = b_from_a(a, b), a_from_b_camera = b_from_a(b, a);
   next_stamp(s, mesh.triangles.size() * 2);
   s.taken.clear();
   auto visit = [&](int id) {
@@ -52,7 +53,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     s.stamp[id] = s.current;
     const int cell = cell_of(id);
     if (!(mesh.triangles[cell] & bit_of(id))) return;
-    const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, bit_of(id)));
+    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit_of(id)));
     if (!may_see_point(b, centre, 2 * distance) || !has_triangle_near(b, centre, distance, kSeamWindow)) return;
     s.taken.push_back(id);
   };
@@ -63,7 +64,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
   for (int id : b_boundary) {
     const int cell = cell_of(id);
     if (!mask_b.covers(cell, other.width, b.level) || !is_boundary_triangle(other.triangles.data(), cell, other.width, other.height, bit_of(id))) continue;
-    const int under = project_into(a, triangle_centre(other, cell, bit_of(id))).cell;
+    const int under = project_camera_point(a, a_from_b_camera * camera_triangle_centre(b, cell, bit_of(id))).cell;
     if (under < 0 || !mesh.triangles[under]) continue;
     visit(triangle_id(under, kUpperTriangle));
     visit(triangle_id(under, kLowerTriangle));

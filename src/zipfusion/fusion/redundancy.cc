@@ -21,6 +21,7 @@ void enqueue(FrbrScratch& s, int id) {
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
 int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
   s.removals.clear();
   for (int id : s.worklist) {
     const int cell = cell_of(id);
@@ -28,7 +29,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     if (!(mesh.triangles[cell] & bit)) continue;
     if (!mask.covers(cell, mesh.width, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
-    const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, bit));
+    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit));
     // The centre lies a third (upper) or two thirds (lower) into the cell.
     const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
     const float x = static_cast<float>(cell % mesh.width) + offset, y = static_cast<float>(cell / mesh.width) + offset;
@@ -194,6 +195,7 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance) {
   // Every other cell is enough for a share; points where b sees no surface near their depth
   // (outside its image, or another surface in front or behind) are counted without a search.
   const DepthMesh& mesh = *a.mesh;
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
   int total = 0, near = 0;
   const PixelBox box = mesh.box();
   for (int v = box.v0; v < box.v1; ++v) {
@@ -202,7 +204,8 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance) {
       const std::uint8_t bits = mesh.triangles[cell];
       if (!bits) continue;
       ++total;
-      const ViewPoint centre = project_into(b, triangle_centre(mesh, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
+      const ViewPoint centre =
+          project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
       if (!may_see_surface(b, centre, 2 * distance)) continue;
       near += has_triangle_near(b, centre, distance);
     }
@@ -234,9 +237,15 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
   mask.width = mesh.width;
   mask.level = a.level;
   mask.cells.assign(mesh.depth.size(), 0);
-  const int cells = mesh.width * mesh.height;
-  for (int cell = 0; cell < cells; ++cell) {
-    if (mesh.depth[cell] > 0 && may_see_surface(b, project_into(b, mesh.points[cell]), depth_tolerance)) mask.cells[cell] = 255;
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
+  const PixelRays rays(a.intrinsics, b_from_a_camera);  // a's pixels straight into b's camera frame
+  const PixelBox box = mesh.box();
+  for (int v = box.v0; v < box.v1; ++v) {
+    for (int u = box.u0; u < box.u1; ++u) {
+      const int cell = v * mesh.width + u;
+      const float z = mesh.depth[cell];
+      if (z > 0 && may_see_surface(b, project_camera_point(b, rays.point(u, v, z)), depth_tolerance)) mask.cells[cell] = 255;
+    }
   }
   cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
   cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
@@ -248,7 +257,7 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
   coarse.height = (fine.height - 1) / step + 1;
   const int count = coarse.width * coarse.height;
   coarse.depth.assign(count, 0.0f);
-  coarse.points.resize(count);
+  coarse.points.clear();
   coarse.triangles.assign(count, 0);
   // The coarse pixels whose fine pixel lies in the fine mesh's depth box.
   const PixelBox fine_box = fine.box();
@@ -263,7 +272,6 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
     const size_t source_row = static_cast<size_t>(v) * step * fine.width;
     for (int u = box.u0; u < box.u1; ++u) {
       coarse.depth[v * coarse.width + u] = fine.depth[source_row + u * step];
-      coarse.points[v * coarse.width + u] = fine.points[source_row + u * step];
     }
   }
   const float threshold = max_depth_jump * static_cast<float>(step);

@@ -87,10 +87,10 @@ struct ViewPoint {
   int cell = -1;
 };
 
-//! Element function: projects world point p into `view`.
-inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) {
+//! Element function: projects point p, given in the view's camera frame, into `view`.
+inline ViewPoint project_camera_point(const MeshView& view, const Eigen::Vector3f& p_in_camera) {
   ViewPoint out;
-  out.in_camera = view.depth_from_world * p;
+  out.in_camera = p_in_camera;
   if (!(out.in_camera.z() > 0)) return out;
   const float inv_z = 1.0f / out.in_camera.z();
   out.x = static_cast<float>(view.intrinsics.fx) * out.in_camera.x() * inv_z + static_cast<float>(view.intrinsics.cx);
@@ -103,6 +103,37 @@ inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) {
   return out;
 }
 
+//! Element function: projects world point p into `view`.
+inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) { return project_camera_point(view, view.depth_from_world * p); }
+
+//! The transform from view a's camera frame to view b's.
+inline Rigid3f b_from_a(const MeshView& a, const MeshView& b) { return b.depth_from_world * a.depth_from_world.inverse(Eigen::Isometry); }
+
+//! Element function: the centre of triangle `bit` of cell `cell` of `view` in its camera frame,
+//! from the depth of its three pixels alone (the world points of the mesh are 3 times the memory,
+//! and the searches are bound by memory reads).
+inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell, TriangleBit bit) {
+  const DepthMesh& mesh = *view.mesh;
+  const int width = mesh.width;
+  const float* d = mesh.depth.data() + cell;
+  const float z00 = d[0], z10 = d[1], z01 = d[width];
+  const float u = static_cast<float>(cell % width) - static_cast<float>(view.intrinsics.cx);
+  const float v = static_cast<float>(cell / width) - static_cast<float>(view.intrinsics.cy);
+  const float third = 1.0f / 3.0f;
+  float sum, x_extra, y_extra;  // the three depths; the corners' extra pixel offsets weighted by depth
+  if (bit == kUpperTriangle) {  // (u, v), (u, v + 1), (u + 1, v)
+    sum = z00 + z01 + z10;
+    x_extra = z10;
+    y_extra = z01;
+  } else {  // (u + 1, v), (u, v + 1), (u + 1, v + 1)
+    const float z11 = d[width + 1];
+    sum = z10 + z01 + z11;
+    x_extra = z10 + z11;
+    y_extra = z01 + z11;
+  }
+  return {(u * sum + x_extra) * third / static_cast<float>(view.intrinsics.fx), (v * sum + y_extra) * third / static_cast<float>(view.intrinsics.fy),
+          sum * third};
+}
 //! Where, coarsely, another camera sees the surface of a camera's mesh: per cell of a coarse view
 //! of the mesh, whether the other camera has depth close to the mesh's point there, dilated by
 //! one cell (so the window searches at the other mesh's border stay inside). Redundancy tests and
@@ -214,8 +245,9 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
                                        const OverlapMask& mask_a, const OverlapMask& mask_b, FrbrScratch& scratch_a,
                                        FrbrScratch& scratch_b);
 
-//! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (depth and world
-//! points), triangulated by SDC with the depth-jump threshold scaled by 2^level.
+//! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (its depth; the
+//! coarse levels carry no world points: every search works from depth), triangulated by SDC with
+//! the depth-jump threshold scaled by 2^level.
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse);
 
 //! Clears in `fine` (one level finer than `coarse`) the triangles covered by the triangles that
