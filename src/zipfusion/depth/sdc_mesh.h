@@ -46,7 +46,7 @@ struct DepthMesh {
   int height = 0;
   std::vector<float> depth;                // per pixel, metres along the camera axis; 0 = none
   std::vector<Eigen::Vector3f> points;     // per pixel, world coordinates (valid where depth > 0)
-  std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags
+  std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags; none in the last row and column
   // Every pixel with depth lies in this box (a person fills a fraction of a depth image, and
   // per-pixel work outside it is skipped). Set by triangulate_sdc; the default is the whole image.
   PixelBox depth_box{0, 0, 1 << 30, 1 << 30};
@@ -94,15 +94,16 @@ inline Eigen::Vector3f triangle_centre(const DepthMesh& mesh, int index, Triangl
 //! True when the triangle exists and one of its three edge neighbours does not.
 //! Upper triangle of (u, v): neighbours are the lower triangles of (u, v−1), (u−1, v) and (u, v).
 //! Lower triangle of (u, v): neighbours are the upper triangles of (u, v), (u+1, v) and (u, v+1).
-inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int width, int height, TriangleBit bit) {
+//! No division and one bounds test: the last row and column of an SDC bit matrix hold no
+//! triangles (sdc_cell), so the neighbour "left of column 0" (the previous row's last cell) and
+//! those beyond the last triangle row or column read as absent, as they are.
+inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int width, TriangleBit bit) {
   if (!(triangles[index] & bit)) return false;
-  const int u = index % width, v = index / width;
   if (bit == kUpperTriangle) {
-    return !(triangles[index] & kLowerTriangle) || v == 0 || !(triangles[index - width] & kLowerTriangle) || u == 0 ||
+    return !(triangles[index] & kLowerTriangle) || index < width || !(triangles[index - width] & kLowerTriangle) ||
            !(triangles[index - 1] & kLowerTriangle);
   }
-  return !(triangles[index] & kUpperTriangle) || v + 1 >= height || !(triangles[index + width] & kUpperTriangle) ||
-         u + 1 >= width || !(triangles[index + 1] & kUpperTriangle);
+  return !(triangles[index] & kUpperTriangle) || !(triangles[index + width] & kUpperTriangle) || !(triangles[index + 1] & kUpperTriangle);
 }
 
 //! Pixel of a world point in a camera (`depth_from_world` = inverse of its world_from_depth), or

@@ -88,19 +88,19 @@ TEST(Sdc, BoundaryTrianglesAreThoseMissingANeighbour) {
   DepthMesh mesh = triangulate(depth);
   int boundary = 0;
   for (int i = 0; i < 25; ++i) {
-    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) boundary += is_boundary_triangle(mesh.triangles.data(), i, 5, 5, bit);
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) boundary += is_boundary_triangle(mesh.triangles.data(), i, 5, bit);
   }
   // Around a 4×4 cell grid: upper triangles on the top row and left column, lower triangles on
   // the bottom row and right column: 4 + 4 − 1 (corner cell counted once) each.
   EXPECT_EQ(boundary, 14);
   // Removing the lower triangle of the centre cell (1,1) exposes its three neighbours.
   const int centre = 1 * 5 + 1;
-  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, 5, kUpperTriangle));
+  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, kUpperTriangle));
   mesh.triangles[centre] &= ~kLowerTriangle;
-  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre, 5, 5, kUpperTriangle));
-  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, 5, kUpperTriangle));
-  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 5, 5, 5, kUpperTriangle));
-  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre, 5, 5, kLowerTriangle));  // gone
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre, 5, kUpperTriangle));
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 1, 5, kUpperTriangle));
+  EXPECT_TRUE(is_boundary_triangle(mesh.triangles.data(), centre + 5, 5, kUpperTriangle));
+  EXPECT_FALSE(is_boundary_triangle(mesh.triangles.data(), centre, 5, kLowerTriangle));  // gone
 }
 
 TEST(Sdc, AppendCompactsVerticesAndSharesThem) {

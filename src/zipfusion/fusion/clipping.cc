@@ -58,12 +58,12 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     s.taken.push_back(id);
   };
   for (int id : s.boundary) {
-    if (mask_a.covers(cell_of(id), mesh.width, a.level) && is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) visit(id);
+    if (mask_a.covers(cell_of(id), mesh.width, a.level) && is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) visit(id);
   }
   const DepthMesh& other = *b.mesh;
   for (int id : b_boundary) {
     const int cell = cell_of(id);
-    if (!mask_b.covers(cell, other.width, b.level) || !is_boundary_triangle(other.triangles.data(), cell, other.width, other.height, bit_of(id))) continue;
+    if (!mask_b.covers(cell, other.width, b.level) || !is_boundary_triangle(other.triangles.data(), cell, other.width, bit_of(id))) continue;
     const int under = project_camera_point(a, a_from_b_camera * camera_triangle_centre(b, cell, bit_of(id))).cell;
     if (under < 0 || !mesh.triangles[under]) continue;
     visit(triangle_id(under, kUpperTriangle));
@@ -111,7 +111,7 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
   // The triangles next to the taken ones are boundary now: candidates for later pairs' seams.
   for (int id : s.taken) {
     int neighbours[3];
-    const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
+    const int n = triangle_neighbours(id, mesh.width, neighbours);
     s.boundary.insert(s.boundary.end(), neighbours, neighbours + n);
   }
 }

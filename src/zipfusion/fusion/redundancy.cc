@@ -28,7 +28,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     const TriangleBit bit = bit_of(id);
     if (!(mesh.triangles[cell] & bit)) continue;
     if (!mask.covers(cell, mesh.width, a.level)) continue;
-    if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, mesh.height, bit)) continue;
+    if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
     const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit));
     // The centre lies a third (upper) or two thirds (lower) into the cell.
     const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
@@ -40,7 +40,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
   for (int id : s.removals) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
   for (int id : s.removals) {
     int neighbours[3];
-    const int n = triangle_neighbours(id, mesh.width, mesh.height, neighbours);
+    const int n = triangle_neighbours(id, mesh.width, neighbours);
     for (int k = 0; k < n; ++k) {
       if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) {
         enqueue(s, neighbours[k]);
@@ -64,7 +64,7 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
   for (int id : s.frontier) {
     if (s.stamp[id] == s.current_stamp) continue;
     s.stamp[id] = s.current_stamp;
-    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) s.worklist.push_back(id);
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) s.worklist.push_back(id);
   }
 }
 
@@ -75,7 +75,7 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
   boundary.clear();
   for_each_triangle_id(mesh, [&](int id) {
-    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, mesh.height, bit_of(id))) boundary.push_back(id);
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) boundary.push_back(id);
   });
 }
 
@@ -296,7 +296,7 @@ int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const Dep
   // cut a hole wider than the seam can close. The finer level decides there.
   auto next_to_kept = [&](int cell, TriangleBit bit) {
     int neighbours[3];
-    const int n = triangle_neighbours(triangle_id(cell, bit), coarse.width, coarse.height, neighbours);
+    const int n = triangle_neighbours(triangle_id(cell, bit), coarse.width, neighbours);
     for (int k = 0; k < n; ++k) {
       if (coarse.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) return true;
     }

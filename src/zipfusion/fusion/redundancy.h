@@ -164,19 +164,18 @@ inline int cell_of(int id) { return id >> 1; }
 inline TriangleBit bit_of(int id) { return (id & 1) ? kLowerTriangle : kUpperTriangle; }
 
 //! Ids of the (up to three) edge neighbours of triangle `id`, whether they exist or not (see
-//! is_boundary_triangle); returns how many.
-inline int triangle_neighbours(int id, int width, int height, int out[3]) {
+//! is_boundary_triangle, whose bit-matrix layout lets this skip bounds tests); returns how many.
+inline int triangle_neighbours(int id, int width, int out[3]) {
   const int cell = cell_of(id);
-  const int u = cell % width, v = cell / width;
   int n = 0;
   if (bit_of(id) == kUpperTriangle) {
     out[n++] = triangle_id(cell, kLowerTriangle);
-    if (v > 0) out[n++] = triangle_id(cell - width, kLowerTriangle);
-    if (u > 0) out[n++] = triangle_id(cell - 1, kLowerTriangle);
+    if (cell >= width) out[n++] = triangle_id(cell - width, kLowerTriangle);
+    if (cell > 0) out[n++] = triangle_id(cell - 1, kLowerTriangle);
   } else {
     out[n++] = triangle_id(cell, kUpperTriangle);
-    if (v + 2 < height) out[n++] = triangle_id(cell + width, kUpperTriangle);
-    if (u + 2 < width) out[n++] = triangle_id(cell + 1, kUpperTriangle);
+    out[n++] = triangle_id(cell + width, kUpperTriangle);
+    out[n++] = triangle_id(cell + 1, kUpperTriangle);
   }
   return n;
 }
