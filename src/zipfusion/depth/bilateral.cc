@@ -1,5 +1,6 @@
 #include "zipfusion/depth/bilateral.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 
@@ -8,8 +9,60 @@
 
 namespace zipfusion {
 namespace {
-constexpr int kRangeLutSize = 1024;
+
+// Adds to the sums of `count` consecutive pixels their taps at one offset (`taps`, one per pixel,
+// all with the spatial weight `spatial`). Pixels innermost, branch-free and contiguous: the loop
+// vectorises, 8 lanes wide where the CPU has AVX2 (chosen at load time), 4 otherwise.
+__attribute__((target_clones("avx2", "default"))) void accumulate_taps(const float* centres, const float* taps, int count, float spatial, float inv_two_range_sigma2, float* weight_sums,
+                     float* value_sums) {
+  for (int i = 0; i < count; ++i) {
+    const float w = bilateral_weight(centres[i], taps[i], spatial, inv_two_range_sigma2);
+    weight_sums[i] += w;
+    value_sums[i] += w * taps[i];
+  }
 }
+
+// The columns [first, last] of a row between its first and last pixel with depth (first > last:
+// none); pixels outside have no depth and so no output.
+struct RowSpan {
+  int first = 0, last = -1;
+};
+
+RowSpan depth_span(const float* row, int width) {
+  RowSpan span{0, width - 1};
+  while (span.first < width && !(row[span.first] > 0)) ++span.first;
+  while (span.last >= span.first && !(row[span.last] > 0)) --span.last;
+  return span;
+}
+
+struct RowSums {
+  std::vector<float> weights, values;
+};
+
+// One output row from the taps that for_each_tap(add) hands out: add(tap_row, offset, spatial)
+// stands for the taps tap_row[u + offset] of every pixel u of the row.
+template <typename ForEachTap>
+void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, RowSums& sums, float* out_row, ForEachTap&& for_each_tap) {
+  std::fill(out_row, out_row + width, 0.0f);
+  const RowSpan span = depth_span(centre_row, width);
+  if (span.first > span.last) return;
+  const int count = span.last - span.first + 1;
+  sums.weights.assign(count, 0.0f);
+  sums.values.assign(count, 0.0f);
+  for_each_tap([&](const float* tap_row, int offset, float spatial) {
+    // Only the pixels whose tap lies inside the row.
+    const int lo = std::max(span.first, -offset), hi = std::min(span.last, width - 1 - offset);
+    if (lo > hi) return;
+    accumulate_taps(centre_row + lo, tap_row + lo + offset, hi - lo + 1, spatial, inv_two_range_sigma2, sums.weights.data() + (lo - span.first),
+                    sums.values.data() + (lo - span.first));
+  });
+  for (int i = 0; i < count; ++i) {
+    const float centre = centre_row[span.first + i];
+    out_row[span.first + i] = centre > 0 ? sums.values[i] / sums.weights[i] : 0.0f;
+  }
+}
+
+}  // namespace
 
 void BilateralOptions::validate() const {
   if (!(spatial_sigma_px > 0)) throw InvalidInput("bilateral-sigma-px: must be positive");
@@ -21,45 +74,60 @@ BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(optio
   const int side = 2 * radius + 1;
   spatial.resize(static_cast<size_t>(side) * side);
   spatial_1d.resize(side);
-  for (int d = -radius; d <= radius; ++d) {
-    spatial_1d[d + radius] = static_cast<float>(std::exp(-(d * d) / (2 * options.spatial_sigma_px * options.spatial_sigma_px)));
-  }
   const double two_sigma2 = 2 * options.spatial_sigma_px * options.spatial_sigma_px;
+  for (int d = -radius; d <= radius; ++d) spatial_1d[d + radius] = static_cast<float>(std::exp(-(d * d) / two_sigma2));
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {
       spatial[(dy + radius) * side + dx + radius] = static_cast<float>(std::exp(-(dx * dx + dy * dy) / two_sigma2));
     }
   }
-  const double max_diff = 3 * options.range_sigma_m;
-  range_lut_scale = static_cast<float>(kRangeLutSize / max_diff);
-  range.resize(kRangeLutSize);
-  for (int i = 0; i < kRangeLutSize; ++i) {
-    const double diff = (i + 0.5) / range_lut_scale;
-    range[i] = static_cast<float>(std::exp(-diff * diff / (2 * options.range_sigma_m * options.range_sigma_m)));
-  }
+  inv_two_range_sigma2 = static_cast<float>(1.0 / (2 * options.range_sigma_m * options.range_sigma_m));
 }
 
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch, int num_threads) {
   assert(&depth_m != &out && &scratch != &out && &scratch != &depth_m);
-  const int width = depth_m.width, height = depth_m.height;
-  out.resize(width, height);
+  const int width = depth_m.width, height = depth_m.height, r = kernel.radius;
+  const float inv = kernel.inv_two_range_sigma2;
+  auto row_of = [width](const Image<float>& image, int v) { return image.data.data() + static_cast<size_t>(v) * width; };
+  auto out_row_of = [width](Image<float>& image, int v) { return image.data.data() + static_cast<size_t>(v) * width; };
+  // Rows in contiguous blocks, one per thread, each with sums of its own.
+  auto for_rows = [&](auto&& row) {
+    const int threads = std::max(1, std::min(num_threads, height));
+    parallel_for(0, threads, [&](int block) {
+      RowSums sums;
+      for (int v = height * block / threads; v < height * (block + 1) / threads; ++v) row(v, sums);
+    }, threads);
+  };
+  auto resize = [&](Image<float>& image) {
+    image.width = width;
+    image.height = height;
+    image.data.resize(depth_m.size());
+  };
+  resize(out);
   if (!kernel.separable) {
-    parallel_for(0, height, [&](int v) {
-      for (int u = 0; u < width; ++u) out.data[static_cast<size_t>(v) * width + u] = bilateral_pixel(u, v, depth_m.data.data(), width, height, kernel);
-    }, num_threads);
+    for_rows([&](int v, RowSums& sums) {
+      filter_row(row_of(depth_m, v), width, inv, sums, out_row_of(out, v), [&](auto&& add) {
+        for (int dy = std::max(-r, -v); dy <= std::min(r, height - 1 - v); ++dy) {
+          const float* spatial_row = kernel.spatial.data() + (dy + r) * (2 * r + 1) + r;
+          for (int dx = -r; dx <= r; ++dx) add(row_of(depth_m, v + dy), dx, spatial_row[dx]);
+        }
+      });
+    });
     return;
   }
-  scratch.resize(width, height);
-  parallel_for(0, height, [&](int v) {
-    for (int u = 0; u < width; ++u) {
-      scratch.data[static_cast<size_t>(v) * width + u] = bilateral_pixel_1d(u, v, depth_m.data.data(), width, height, 1, kernel);
-    }
-  }, num_threads);
-  parallel_for(0, height, [&](int v) {
-    for (int u = 0; u < width; ++u) {
-      out.data[static_cast<size_t>(v) * width + u] = bilateral_pixel_1d(u, v, scratch.data.data(), width, height, width, kernel);
-    }
-  }, num_threads);
+  // A row pass into `scratch`, then a column pass over it.
+  resize(scratch);
+  for_rows([&](int v, RowSums& sums) {
+    const float* centre_row = row_of(depth_m, v);
+    filter_row(centre_row, width, inv, sums, out_row_of(scratch, v), [&](auto&& add) {
+      for (int dx = -r; dx <= r; ++dx) add(centre_row, dx, kernel.spatial_1d[dx + r]);
+    });
+  });
+  for_rows([&](int v, RowSums& sums) {
+    filter_row(row_of(scratch, v), width, inv, sums, out_row_of(out, v), [&](auto&& add) {
+      for (int dy = std::max(-r, -v); dy <= std::min(r, height - 1 - v); ++dy) add(row_of(scratch, v + dy), 0, kernel.spatial_1d[dy + r]);
+    });
+  });
 }
 
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads) {
