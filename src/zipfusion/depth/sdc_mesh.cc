@@ -1,11 +1,25 @@
 #include "zipfusion/depth/sdc_mesh.h"
 
+#include <cmath>
+
 #include "zipfusion/core/error.h"
 
 namespace zipfusion {
 
 void SdcOptions::validate() const {
   if (!(max_depth_jump_m > 0 && max_depth_jump_m < 1)) throw InvalidInput("max-depth-jump: must be in (0, 1) metres");
+}
+
+__attribute__((target_clones("avx2", "default"))) void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits) {
+  const float* below = depth + width;
+  for (int i = 0; i < count; ++i) {
+    const float p = depth[i], r = depth[i + 1], b = below[i], d = below[i + 1];
+    auto close = [max_jump](float x, float y) { return static_cast<int>(std::abs(x - y) < max_jump); };
+    const int shared = static_cast<int>(r > 0) & static_cast<int>(b > 0) & close(r, b);
+    const int upper = shared & static_cast<int>(p > 0) & close(p, r) & close(p, b);
+    const int lower = shared & static_cast<int>(d > 0) & close(r, d) & close(b, d);
+    bits[i] = static_cast<std::uint8_t>(upper * kUpperTriangle + lower * kLowerTriangle);
+  }
 }
 
 int DepthMesh::triangle_count() const {
@@ -42,9 +56,10 @@ void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rig
   out.depth_box = box;
   // A triangle needs depth at its cell's pixel and at the one right of or below it.
   const float max_jump = static_cast<float>(options.max_depth_jump_m);
-  for (int v = box.v0; v < box.v1; ++v) {
-    std::uint8_t* bits = out.triangles.data() + static_cast<size_t>(v) * width;
-    for (int u = box.u0; u < box.u1; ++u) bits[u] = sdc_cell(u, v, out.depth.data(), width, height, max_jump);
+  for (int v = box.v0; v < std::min(box.v1, height - 1); ++v) {
+    const int u1 = std::min(box.u1, width - 1);
+    sdc_row(out.depth.data() + static_cast<size_t>(v) * width + box.u0, width, u1 - box.u0, max_jump,
+            out.triangles.data() + static_cast<size_t>(v) * width + box.u0);
   }
 }
 

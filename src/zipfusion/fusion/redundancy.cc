@@ -275,8 +275,9 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
     }
   }
   const float threshold = max_depth_jump * static_cast<float>(step);
-  for (int v = box.v0; v < box.v1; ++v) {
-    for (int u = box.u0; u < box.u1; ++u) coarse.triangles[v * coarse.width + u] = sdc_cell(u, v, coarse.depth.data(), coarse.width, coarse.height, threshold);
+  for (int v = box.v0; v < std::min(box.v1, coarse.height - 1); ++v) {
+    const int row = v * coarse.width + box.u0;
+    sdc_row(coarse.depth.data() + row, coarse.width, std::min(box.u1, coarse.width - 1) - box.u0, threshold, coarse.triangles.data() + row);
   }
 }
 
