@@ -1,12 +1,17 @@
 #include "zipfusion/depth/color_lookup.h"
 
 #include <algorithm>
+#include <cstring>
 
 namespace zipfusion {
 
 void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const ColorImage* color, std::vector<Rgb8>& out) {
   const int count = mesh.width * mesh.height;
-  out.assign(count, kNoColor);
+  // kNoColor is grey 128 in every byte, so a memset fills it (a loop over 3-byte pixels was a
+  // sixth of this function's time).
+  static_assert(sizeof(Rgb8) == 3 && kNoColor.r == 128 && kNoColor.g == 128 && kNoColor.b == 128);
+  out.resize(count);
+  std::memset(out.data(), 128, out.size() * sizeof(Rgb8));
   if (color == nullptr || color->empty() || !camera.has_color()) return;
   const Intrinsics& color_k = *camera.color_intrinsics;
   // Depth pixels straight into the colour camera's frame.

@@ -15,15 +15,18 @@ namespace zipfusion {
 inline constexpr Rgb8 kNoColor{128, 128, 128};
 
 //! Element function: bilinear sample at (x, y) (pixel centres at integers); kNoColor outside.
+//! Fixed point: the weights in 1/256ths, as exact as the 8-bit channels they mix.
 inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
   if (!(x >= 0.0f && y >= 0.0f && x <= image.width - 1.0f && y <= image.height - 1.0f)) return kNoColor;
   const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
   const int x1 = x0 + 1 < image.width ? x0 + 1 : x0, y1 = y0 + 1 < image.height ? y0 + 1 : y0;
-  const float fx = x - x0, fy = y - y0;
-  const Rgb8 a = image(x0, y0), b = image(x1, y0), c = image(x0, y1), d = image(x1, y1);
-  auto mix = [&](unsigned char pa, unsigned char pb, unsigned char pc, unsigned char pd) {
-    const float top = pa + fx * (pb - pa), bottom = pc + fx * (pd - pc);
-    return static_cast<unsigned char>(top + fy * (bottom - top) + 0.5f);
+  const int wx = static_cast<int>((x - static_cast<float>(x0)) * 256.0f + 0.5f), wy = static_cast<int>((y - static_cast<float>(y0)) * 256.0f + 0.5f);
+  const Rgb8* row0 = image.data.data() + static_cast<size_t>(y0) * image.width;
+  const Rgb8* row1 = image.data.data() + static_cast<size_t>(y1) * image.width;
+  const Rgb8 a = row0[x0], b = row0[x1], c = row1[x0], d = row1[x1];
+  auto mix = [&](int pa, int pb, int pc, int pd) {
+    const int top = pa * 256 + wx * (pb - pa), bottom = pc * 256 + wx * (pd - pc);
+    return static_cast<unsigned char>((top * 256 + wy * (bottom - top) + 32768) >> 16);
   };
   return {mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
 }
