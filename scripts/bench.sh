@@ -34,7 +34,7 @@ step "samba-4cam: quality of each mode (reconstruct + eval)"
 for mode in zipper separate; do
   for filter in bilateral none; do
     name="${mode}_${filter}"
-    "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --mode "$mode" --filter "$filter" \
+    "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --mode "$mode" --filter "$filter" \
       --out "$OUT/meshes/$name" > /dev/null
     "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
   done

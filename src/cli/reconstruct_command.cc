@@ -30,7 +30,7 @@ struct ReconstructArgs {
   std::string filter = "bilateral";
   std::string format = "ply";
   std::string rig;
-  std::string register_mode = "off";
+  std::string register_mode = "auto";
   bool no_volume_crop = false;
   ReconstructOptions options;
   BackgroundRegistrationOptions background;
@@ -56,6 +56,8 @@ void run_reconstruct(ReconstructArgs& args) {
   const Capture capture = Capture::open(args.capture);
   const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
+  // auto: refine in the background unless the rig's poses are marked as trusted.
+  if (args.register_mode == "auto") args.register_mode = rig.poses_trusted ? "off" : "background";
 
   const fs::path out_dir = args.out;
   std::error_code ec;
@@ -168,8 +170,10 @@ void add_reconstruct_command(CLI::App& app) {
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
   cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
   cmd->add_option("--register", args->register_mode,
-                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off")
-      ->check(CLI::IsMember({"background", "once", "off"}))
+                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off, "
+                  "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "
+                  "register)")
+      ->check(CLI::IsMember({"auto", "background", "once", "off"}))
       ->capture_default_str();
   cmd->add_option("--register-every", args->background.every_frames, "background: frames between two refinements")->capture_default_str();
   cmd->add_option("--register-window", args->background.window_frames, "background: newest offered frame sets refined together")

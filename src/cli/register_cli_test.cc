@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <nlohmann/json.hpp>
+
 #include "cli/cli_test_util.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/rig.h"
@@ -35,8 +38,20 @@ TEST_F(RegisterCli, WritesARefinedRigAndReportsEveryCamera) {
   const Rig refined = read_rig(out);
   EXPECT_GT(worst_mm(cap.rig(), *cap.ground_truth_rig()), 20);
   EXPECT_LT(worst_mm(refined, *cap.ground_truth_rig()), 2);
-  // The refined rig drives reconstruction.
-  EXPECT_EQ(run("reconstruct " + capture + " --rig " + out + " --frames 0:1 --mode separate --out " + (dir_ / "m").string()).exit_code, 0);
+  EXPECT_TRUE(refined.poses_trusted);
+  // The refined rig drives reconstruction, and being trusted it is not refined again by default;
+  // the capture's own miscalibrated rig.json is.
+  const auto register_mode = [&](const std::string& extra, const std::string& name) {
+    const fs::path meshes = dir_ / name;
+    EXPECT_EQ(run("reconstruct " + capture + extra + " --frames 0:1 --mode separate --out " + meshes.string()).exit_code, 0);
+    std::ifstream stats(meshes / "stats.json");
+    return nlohmann::json::parse(stats).at("register").get<std::string>();
+  };
+  EXPECT_EQ(register_mode(" --rig " + out, "m1"), "off");
+  EXPECT_EQ(register_mode("", "m2"), "background");
+  EXPECT_EQ(register_mode(" --register once", "m3"), "once");
+  EXPECT_FALSE(cap.rig().poses_trusted);
+  EXPECT_TRUE(cap.ground_truth_rig()->poses_trusted);
 }
 
 TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {

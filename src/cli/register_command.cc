@@ -55,6 +55,7 @@ void run_register(RegisterArgs& args) {
 
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
+  refined.poses_trusted = true;
   write_rig(args.out, refined);
 
   std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),

@@ -25,6 +25,7 @@ inline Rig rig_with_poses_from(const Rig& rig, const std::filesystem::path& path
     }
     result.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
   }
+  result.poses_trusted = other.poses_trusted;
   return result;
 }
 

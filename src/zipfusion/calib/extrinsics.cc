@@ -358,6 +358,7 @@ ExtrinsicResult calibrate_extrinsics(const Rig& rig, const WandObservations& obs
 
   // World poses: camera 0's colour camera keeps its input pose; depth follows colour.
   result.rig = rig;
+  result.rig.poses_trusted = true;  // calibrated: reconstruct uses the poses as they are unless asked to refine
   const CameraModel& gauge = rig.cameras[0];
   const Rigid3d world_from_ref = gauge.world_from_depth * gauge.color_from_depth.inverse();
   for (int c = 0; c < n; ++c) {

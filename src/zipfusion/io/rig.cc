@@ -157,6 +157,11 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   rig.fps = top.positive("fps");
   rig.frame_count = top.integer("frame_count", 0);
   if (top.has("depth_unit_m")) rig.depth_unit_m = top.positive("depth_unit_m");
+  if (top.has("poses_trusted")) {
+    const json& trusted = top.required("poses_trusted");
+    if (!trusted.is_boolean()) top.fail("poses_trusted", "must be true or false, got " + trusted.dump());
+    rig.poses_trusted = trusted.get<bool>();
+  }
   if (top.has("volume")) {
     const Fields volume = top.object("volume");
     const std::vector<double> lo = top.numbers(volume.required("min"), "volume.min", 3);
@@ -203,6 +208,7 @@ std::string format_rig(const Rig& rig) {
   out << "  \"fps\": " << json(rig.fps).dump() << ",\n";
   out << "  \"frame_count\": " << rig.frame_count << ",\n";
   out << "  \"depth_unit_m\": " << json(rig.depth_unit_m).dump() << ",\n";
+  if (rig.poses_trusted) out << "  \"poses_trusted\": true,\n";
   if (rig.volume) {
     const nlohmann::ordered_json volume = {{"min", {rig.volume->min.x(), rig.volume->min.y(), rig.volume->min.z()}},
                          {"max", {rig.volume->max.x(), rig.volume->max.y(), rig.volume->max.z()}}};

@@ -31,6 +31,10 @@ struct Rig {
   int frame_count = 0;            // frames per camera
   double depth_unit_m = 0.001;    // metres per depth PNG unit
   std::optional<Box3d> volume;    // capture volume in world coordinates, metres
+  // "poses_trusted" (optional, a zipfusion extension ignored by other tools): the poses come from
+  // a calibration or a refinement (calibrate, register) or are exact (synth), so reconstruct does
+  // not refine them unless asked. Absent: false.
+  bool poses_trusted = false;
   std::vector<CameraModel> cameras;
 
   //! Index of the camera with that name, or -1.

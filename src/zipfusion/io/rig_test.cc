@@ -96,6 +96,18 @@ TEST_F(RigFile, UnknownKeysAreIgnoredAndDefaultsApply) {
   const Rig rig = read_rig(dir_ / "rig.json");
   EXPECT_EQ(rig.depth_unit_m, 0.001);
   EXPECT_FALSE(rig.volume.has_value());
+  EXPECT_FALSE(rig.poses_trusted);  // absent: the poses may be refined
+}
+
+TEST_F(RigFile, TrustedPosesRoundTrip) {
+  Rig rig = example_rig();
+  rig.poses_trusted = true;
+  write_rig(dir_ / "rig.json", rig);
+  EXPECT_TRUE(read_rig(dir_ / "rig.json").poses_trusted);
+  rig.poses_trusted = false;
+  write_rig(dir_ / "rig.json", rig);
+  EXPECT_FALSE(read_rig(dir_ / "rig.json").poses_trusted);
+  EXPECT_EQ(format_rig(rig).find("poses_trusted"), std::string::npos);  // written only when true: other tools' files stay as they were
 }
 
 struct BadCase {
@@ -113,6 +125,7 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"fractional frame_count", [](json& j) { j["frame_count"] = 2.5; }, "frame_count: must be an integer"},
       {"negative frame_count", [](json& j) { j["frame_count"] = -1; }, "frame_count: must be an integer >= 0"},
       {"string depth unit", [](json& j) { j["depth_unit_m"] = "mm"; }, "depth_unit_m: must be a number"},
+      {"numeric trust", [](json& j) { j["poses_trusted"] = 1; }, "poses_trusted: must be true or false"},
       {"inverted volume", [](json& j) { j["volume"]["max"][2] = -5; }, "volume: min must be below max"},
       {"short volume", [](json& j) { j["volume"]["min"] = {1, 2}; }, "volume.min: must be an array of 3 numbers"},
       {"no cameras", [](json& j) { j["cameras"] = json::array(); }, "cameras: must be a non-empty array"},

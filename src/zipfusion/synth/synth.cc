@@ -138,6 +138,7 @@ Rig make_ring_rig(const SynthOptions& options) {
   rig.fps = options.fps;
   rig.frame_count = options.frames;
   rig.depth_unit_m = 0.001;
+  rig.poses_trusted = true;  // the exact poses the views are rendered from
   const Eigen::Vector3d target(0, 0, options.target_height_m);
   Rigid3d color_from_depth = Rigid3d::Identity();
   color_from_depth.translation() = Eigen::Vector3d(-kColorOffsetM, 0, 0);
@@ -156,6 +157,7 @@ Rig make_ring_rig(const SynthOptions& options) {
 Rig miscalibrate(const Rig& true_rig, const SynthOptions& options) {
   Rig rig = true_rig;
   if (options.miscalibrate_deg == 0 && options.miscalibrate_m == 0) return rig;
+  rig.poses_trusted = false;
   std::mt19937_64 rng(options.seed ^ 0x5eed0ca1ULL);
   for (size_t k = 1; k < rig.cameras.size(); ++k) {
     Rigid3d depth_from_perturbed = Rigid3d::Identity();
