@@ -12,6 +12,8 @@ packages=(
   libcgal-dev                        # 2-D Delaunay triangulation of seams
   libnanoflann-dev                   # k-d trees: closest points for registration
   libceres-dev                       # bundle adjustment (calibration)
+  libdraco-dev                       # mesh compression for the live stream
+  libboost-dev                       # Boost.Beast: HTTP and WebSocket server of the live stream
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md

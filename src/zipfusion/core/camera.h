@@ -54,6 +54,23 @@ inline Eigen::Vector3f unproject(const Intrinsics& k, float u, float v, float z)
           (v - static_cast<float>(k.cy)) * z / static_cast<float>(k.fy), z};
 }
 
+//! The intrinsics of every 2^level-th pixel (from pixel 0): pixel u of the subsampled image is
+//! pixel u·2^level of the original, so focal lengths and principal point scale by 2^−level.
+//! Distortion is dropped (depth maps are undistorted).
+inline Intrinsics subsampled_intrinsics(const Intrinsics& k, int level) {
+  const double scale = 1.0 / (1 << level);
+  Intrinsics out = k;
+  out.width = (k.width - 1) / (1 << level) + 1;
+  out.height = (k.height - 1) / (1 << level) + 1;
+  out.fx *= scale;
+  out.fy *= scale;
+  out.cx *= scale;
+  out.cy *= scale;
+  out.has_distortion = false;
+  out.distortion = {};
+  return out;
+}
+
 //! The rays of a pinhole camera's pixels, expressed in another frame (`frame_from_cam`): the point
 //! at pixel (u, v) with depth z along the optical axis is origin + z·(ray0 + u·ray_du + v·ray_dv).
 //! Precomputed once per camera, it turns unproject-and-transform into a few multiply-adds per

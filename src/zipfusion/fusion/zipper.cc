@@ -13,18 +13,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-Intrinsics level_intrinsics(const Intrinsics& k, int level) {
-  const double scale = 1.0 / (1 << level);
-  Intrinsics out = k;
-  out.width = (k.width - 1) / (1 << level) + 1;
-  out.height = (k.height - 1) / (1 << level) + 1;
-  out.fx *= scale;
-  out.fy *= scale;
-  out.cx *= scale;
-  out.cy *= scale;
-  out.has_distortion = false;
-  return out;
-}
 
 // Pyramid level of the border distance that decides ownership. Level 1 (320×240 for a Kinect)
 // scored as the per-level distances did (samba-4cam: accuracy, completeness and components alike;
@@ -83,11 +71,11 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.levels.resize(levels);
     s.bits_before.resize(levels);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
-    views[c][0] = {cameras[c].mesh, level_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.border, c, 0};
+    views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.border, c, 0};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
-      views[c][level] = {&s.levels[level - 1], level_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.border, c,
+      views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.border, c,
                          level};
     }
     // Ownership at every level from one border distance.

@@ -1,7 +1,9 @@
 #include "zipfusion/pipeline/reconstruct.h"
 
+#include <algorithm>
 #include <chrono>
 
+#include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/depth/color_lookup.h"
 
@@ -17,9 +19,30 @@ const ReconstructOptions& validated(const ReconstructOptions& options) {
   return options;
 }
 
+// The options for depth subsampled by 2^level: lengths in pixels shrink, the depth jump allowed
+// between neighbouring pixels grows with their spacing, and the zipper's pyramid starts at the
+// same coarsest resolution as before.
+ReconstructOptions at_depth_level(ReconstructOptions options) {
+  const int level = options.depth_level;
+  if (level == 0) return options;
+  const double scale = 1 << level;
+  options.sdc.max_depth_jump_m *= scale;
+  options.filter.spatial_sigma_px = std::max(0.5, options.filter.spatial_sigma_px / scale);
+  options.filter.radius_px = std::max(1, static_cast<int>(options.filter.radius_px / scale));
+  options.zipper.hole_closing_px >>= level;
+  options.zipper.coarse_levels = std::max(0, options.zipper.coarse_levels - level);
+  return options;
+}
+
+Rig at_depth_level(Rig rig, int level) {
+  for (CameraModel& camera : rig.cameras) camera.depth_intrinsics = subsampled_intrinsics(camera.depth_intrinsics, level);
+  return rig;
+}
+
 }  // namespace
 
 void ReconstructOptions::validate() const {
+  if (depth_level < 0 || depth_level > 3) throw InvalidInput("lod: must be in [0, 3]");
   foreground.validate();
   filter.validate();
   sdc.validate();
@@ -27,7 +50,10 @@ void ReconstructOptions::validate() const {
 }
 
 FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
-    : rig_(rig), options_(validated(options)), kernel_(options.filter), cameras_(rig.cameras.size()) {}
+    : rig_(at_depth_level(rig, validated(options).depth_level)),
+      options_(at_depth_level(options)),
+      kernel_(options_.filter),
+      cameras_(rig.cameras.size()) {}
 
 void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth) {
   assert(world_from_depth.size() == rig_.cameras.size());
@@ -51,7 +77,17 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   };
 
   stage(result.times.foreground_ms, [&](int c, CameraState& s) {
-    extract_foreground(frames.cameras[c].depth, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
+    const DepthImage* raw = &frames.cameras[c].depth;
+    if (options_.depth_level > 0) {
+      const int step = 1 << options_.depth_level;
+      const Intrinsics& k = rig_.cameras[c].depth_intrinsics;
+      s.subsampled.resize(k.width, k.height);
+      for (int v = 0; v < k.height; ++v) {
+        for (int u = 0; u < k.width; ++u) s.subsampled(u, v) = (*raw)(u * step, v * step);
+      }
+      raw = &s.subsampled;
+    }
+    extract_foreground(*raw, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
   });
   if (options_.bilateral) {
     stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });

@@ -31,6 +31,10 @@ struct ReconstructOptions {
   BilateralOptions filter;
   SdcOptions sdc;
   ZipperOptions zipper;  // sdc_max_depth_jump_m is taken from `sdc`
+  // Level of detail: reconstruct from every 2^depth_level-th depth pixel (0 = full resolution; 1
+  // gives a quarter of the triangles, for a stream). Thresholds in pixels shrink and the SDC depth
+  // jump grows with the pixel spacing; colour is still sampled from the full colour image.
+  int depth_level = 0;
   int num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming the field
@@ -70,6 +74,7 @@ class FrameReconstructor {
 
  private:
   struct CameraState {
+    DepthImage subsampled;  // depth_level > 0: every 2^level-th raw depth pixel
     Image<float> foreground;
     Image<float> filtered;
     Image<float> filter_scratch;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "zipfusion/core/error.h"
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/synth/synth.h"
 
@@ -76,6 +77,39 @@ TEST(Reconstruct, SeparateMeshesLieOnTheTrueSurface) {
     // The floor is cropped away by the volume: nothing below 2 cm.
     for (const Eigen::Vector3f& p : result.mesh.positions) ASSERT_GE(p.z(), 0.02f);
   }
+}
+
+// A level of detail: every second depth pixel gives a quarter of the triangles on the same surface,
+// zippered into one mesh.
+TEST(Reconstruct, CoarserLevelOfDetailKeepsTheSurface) {
+  SynthOptions options;
+  options.frames = 1;
+  options.cameras = 4;
+  Rig rig = make_ring_rig(options);
+  rig.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}};
+  const TriangleMesh truth = subject_mesh(options, 0);
+  FrameSet frames;
+  for (int c = 0; c < 4; ++c) {
+    SyntheticView view = render_view(truth, rig, c, 0, options);
+    frames.cameras.push_back({.has_depth = true, .depth = std::move(view.depth), .has_color = true, .color = std::move(view.color)});
+  }
+  const MeshDistance distance(truth);
+  auto median_error = [&](const TriangleMesh& mesh) {
+    std::vector<float> d;
+    for (const Eigen::Vector3f& p : mesh.positions) d.push_back(distance.closest(p, 1.0f).distance);
+    std::sort(d.begin(), d.end());
+    return d[d.size() / 2];
+  };
+  FrameReconstructor full(rig, {});
+  FrameReconstructor half(rig, {.depth_level = 1});
+  const FrameResult a = full.reconstruct(frames), b = half.reconstruct(frames);
+  const double share = static_cast<double>(b.mesh.triangle_count()) / static_cast<double>(a.mesh.triangle_count());
+  EXPECT_GT(share, 0.2);
+  EXPECT_LT(share, 0.3);
+  EXPECT_LT(median_error(b.mesh), 0.005f);
+  EXPECT_LT(median_error(b.mesh), median_error(a.mesh) + 0.0015f);
+  EXPECT_GE(b.zipper.pairs, 4);
+  EXPECT_THROW(FrameReconstructor(rig, {.depth_level = 4}), InvalidInput);
 }
 
 TEST(Reconstruct, MissingCameraIsLeftOut) {

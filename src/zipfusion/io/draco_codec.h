@@ -1,0 +1,52 @@
+#pragma once
+//! \file
+//! Mesh compression with Draco (Google's mesh codec, Debian's libdraco): positions quantised on a
+//! fixed grid over the capture volume (the same grid every frame, so a static surface does not
+//! shimmer), 8-bit colours, connectivity by Edgebreaker. For streaming one mesh per frame
+//! (`zipfusion serve`); the browser decodes it with three.js's DRACOLoader.
+//!
+//! Thread safety: the functions are pure.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "zipfusion/core/geometry.h"
+#include "zipfusion/core/mesh.h"
+
+namespace zipfusion {
+
+struct DracoOptions {
+  int position_bits = 11;     // bits per coordinate over the quantisation box (issue 8: 11)
+  int compression_level = 7;  // 0 (fastest) to 10 (smallest); Draco's encoder speed is 10 − this
+  bool colors = true;         // encode per-vertex colours when the mesh has them
+
+  void validate() const;  // throws InvalidInput naming the field
+};
+
+//! The cube positions are quantised in: `origin` and side `range`, metres.
+struct QuantizationBox {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  float range = 1;
+
+  //! Largest distance between a point and its quantised position, metres.
+  float max_error(int bits) const;
+};
+
+//! The cube over `volume` (its longest side), grown to hold every position of `mesh` (a mesh may
+//! reach outside the volume when cropping is off). Without a volume, the mesh's bounding cube.
+QuantizationBox quantization_box(const TriangleMesh& mesh, const std::optional<Box3d>& volume);
+
+//! Encodes `mesh` (a position per vertex, optional colours, triangles); throws InvalidInput for
+//! invalid options and IoError when Draco fails. A mesh without triangles (nobody in view) is
+//! the empty buffer, which Draco has no encoding for. Triangles that quantisation makes
+//! degenerate (two corners on one grid point) are dropped by Draco.
+std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, const DracoOptions& options = {});
+
+//! Decodes what encode_draco wrote (or any Draco triangle mesh with positions and optional
+//! 8-bit colours; the empty buffer is the empty mesh); throws InvalidInput naming `source` for
+//! bytes that are not one.
+TriangleMesh decode_draco(const std::string& bytes, const std::string& source = "draco buffer");
+
+}  // namespace zipfusion
