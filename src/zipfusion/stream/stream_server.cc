@@ -1,0 +1,375 @@
+#include "zipfusion/stream/stream_server.h"
+
+#include <utility>  // before Asio: Boost 1.74's awaitable.hpp uses std::exchange without it
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <nlohmann/json.hpp>
+
+#include <deque>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "zipfusion/core/error.h"
+
+namespace zipfusion {
+namespace {
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = net::ip::tcp;
+
+constexpr const char* kTokenCookie = "zf_token";
+
+// Constant-time comparison: the time a wrong token takes to refuse tells nothing about the right one.
+bool same_secret(const std::string& a, const std::string& b) {
+  unsigned char diff = a.size() == b.size() ? 0 : 1;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+// The value of `key` in a query string ("a=1&token=xyz"), or "".
+std::string query_value(const std::string& query, const std::string& key) {
+  std::istringstream in(query);
+  std::string item;
+  while (std::getline(in, item, '&')) {
+    const size_t eq = item.find('=');
+    if (eq != std::string::npos && item.substr(0, eq) == key) return item.substr(eq + 1);
+  }
+  return "";
+}
+
+std::string cookie_value(const std::string& cookies, const std::string& key) {
+  std::istringstream in(cookies);
+  std::string item;
+  while (std::getline(in, item, ';')) {
+    const size_t start = item.find_first_not_of(' ');
+    if (start == std::string::npos) continue;
+    item = item.substr(start);
+    const size_t eq = item.find('=');
+    if (eq != std::string::npos && item.substr(0, eq) == key) return item.substr(eq + 1);
+  }
+  return "";
+}
+
+const char* content_type(const std::filesystem::path& file) {
+  const std::string ext = file.extension().string();
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".js" || ext == ".mjs") return "text/javascript; charset=utf-8";
+  if (ext == ".wasm") return "application/wasm";
+  if (ext == ".json") return "application/json";
+  if (ext == ".css") return "text/css; charset=utf-8";
+  return "application/octet-stream";
+}
+
+// A path of the request that names a file of the viewer: plain names in the root or one folder
+// below it, nothing else (no "..", no hidden files, no absolute paths).
+bool safe_relative_path(const std::string& path) {
+  if (path.empty() || path.size() > 200) return false;
+  int slashes = 0;
+  char previous = '/';
+  for (const char c : path) {
+    const bool plain = std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+    if (c == '/') {
+      if (previous == '/' || ++slashes > 1) return false;
+    } else if (!plain || (c == '.' && previous == '/')) {
+      return false;
+    }
+    previous = c;
+  }
+  return previous != '/';
+}
+
+struct Session;
+
+}  // namespace
+
+struct StreamServer::Impl {
+  StreamServerOptions options;
+  std::string hello;
+  net::io_context io{1};
+  tcp::acceptor acceptor{io};
+  std::set<std::shared_ptr<Session>> sessions;  // touched on the io thread only
+  std::thread thread;
+  std::atomic<long> clients_total{0}, refused{0}, closed_bad_message{0}, frames_broadcast{0}, frames_sent{0}, frames_skipped{0}, bytes_sent{0};
+  std::atomic<int> clients{0};
+
+  void accept();
+  bool authorised(const http::request<http::string_body>& request, const std::string& query) const;
+};
+
+namespace {
+
+// One WebSocket client: its queue of messages waiting to be written, one write at a time.
+struct Session : std::enable_shared_from_this<Session> {
+  Session(tcp::socket socket, StreamServer::Impl& server) : ws(std::move(socket)), server(server) {}
+
+  void start(http::request<http::string_body> request) {
+    ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws.read_message_max(static_cast<std::uint64_t>(server.options.max_client_message_bytes));
+    ws.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
+      if (ec) return;
+      self->server.sessions.insert(self);
+      self->server.clients = static_cast<int>(self->server.sessions.size());
+      ++self->server.clients_total;
+      self->enqueue(std::make_shared<const std::string>(self->server.hello), false);
+      self->read();
+    });
+  }
+
+  // Queues a message; a full queue skips its oldest frame not being written.
+  void enqueue(std::shared_ptr<const std::string> message, bool binary) {
+    if (closed || (binary && paused)) return;
+    const size_t first_waiting = writing ? 1 : 0;
+    if (binary && static_cast<int>(queue.size() - first_waiting) >= server.options.client_queue_frames) {
+      for (size_t i = first_waiting; i < queue.size(); ++i) {
+        if (queue[i].second) {
+          queue.erase(queue.begin() + static_cast<long>(i));
+          ++server.frames_skipped;
+          break;
+        }
+      }
+    }
+    queue.emplace_back(std::move(message), binary);
+    if (!writing) write_next();
+  }
+
+  void write_next() {
+    if (queue.empty() || closed) {
+      writing = false;
+      return;
+    }
+    writing = true;
+    ws.binary(queue.front().second);
+    ws.async_write(net::buffer(*queue.front().first), [self = shared_from_this()](beast::error_code ec, size_t bytes) {
+      if (ec) return self->finish();
+      if (self->queue.front().second) {
+        ++self->server.frames_sent;
+        self->server.bytes_sent += static_cast<long>(bytes);
+      }
+      self->queue.pop_front();
+      self->write_next();
+    });
+  }
+
+  void read() {
+    ws.async_read(incoming, [self = shared_from_this()](beast::error_code ec, size_t) {
+      if (ec == websocket::error::message_too_big) {  // Beast has closed it already, with code 1009 ("too big")
+        ++self->server.closed_bad_message;
+        return self->finish();
+      }
+      if (ec) return self->finish();
+      const std::string text = beast::buffers_to_string(self->incoming.data());
+      self->incoming.consume(self->incoming.size());
+      if (!self->handle(text)) return self->refuse("malformed message");
+      self->read();
+    });
+  }
+
+  // A command from the client; false when it is not one.
+  bool handle(const std::string& text) {
+    if (!ws.got_text()) return false;
+    const nlohmann::json command = nlohmann::json::parse(text, nullptr, false);
+    if (!command.is_object() || !command.contains("type") || !command["type"].is_string()) return false;
+    const std::string type = command["type"];
+    if (type == "pause") {
+      paused = true;
+    } else if (type == "resume") {
+      paused = false;
+    } else if (type == "ping") {
+      nlohmann::json pong = {{"type", "pong"}};
+      if (command.contains("t")) pong["t"] = command["t"];
+      enqueue(std::make_shared<const std::string>(pong.dump()), false);
+    } else {
+      return false;
+    }
+    return true;
+  }
+
+  // Closes this client only, saying why.
+  void refuse(const char* why) {
+    ++server.closed_bad_message;
+    closed = true;
+    ws.async_close(websocket::close_reason(websocket::close_code::policy_error, why), [self = shared_from_this()](beast::error_code) { self->finish(); });
+  }
+
+  void finish() {
+    closed = true;
+    server.sessions.erase(shared_from_this());
+    server.clients = static_cast<int>(server.sessions.size());
+  }
+
+  websocket::stream<beast::tcp_stream> ws;
+  StreamServer::Impl& server;
+  beast::flat_buffer incoming;
+  std::deque<std::pair<std::shared_ptr<const std::string>, bool>> queue;  // message, binary (a frame)
+  bool writing = false, paused = false, closed = false;
+};
+
+// One HTTP connection: files of the viewer, or the upgrade to the stream.
+struct HttpSession : std::enable_shared_from_this<HttpSession> {
+  HttpSession(tcp::socket socket, StreamServer::Impl& server) : stream(std::move(socket)), server(server) {}
+
+  void read() {
+    parser.emplace();
+    parser->header_limit(8 * 1024);
+    parser->body_limit(8 * 1024);
+    stream.expires_after(std::chrono::seconds(30));
+    http::async_read(stream, buffer, *parser, [self = shared_from_this()](beast::error_code ec, size_t) {
+      if (ec) return;
+      self->respond(self->parser->release());
+    });
+  }
+
+  void respond(http::request<http::string_body> request) {
+    const std::string target(request.target());
+    const size_t question = target.find('?');
+    const std::string path = target.substr(0, question), query = question == std::string::npos ? "" : target.substr(question + 1);
+    if (!server.authorised(request, query)) {
+      ++server.refused;
+      return send(text_response(request, http::status::unauthorized, "a token is required: open the page as /?token=..."));
+    }
+    if (path == "/stream" && websocket::is_upgrade(request)) {
+      stream.expires_never();
+      std::make_shared<Session>(stream.release_socket(), server)->start(std::move(request));
+      return;
+    }
+    if (request.method() != http::verb::get && request.method() != http::verb::head) {
+      return send(text_response(request, http::status::method_not_allowed, "GET only"));
+    }
+    const std::string relative = path == "/" ? "index.html" : path.substr(1);
+    if (server.options.web_root.empty() || !safe_relative_path(relative)) return send(text_response(request, http::status::not_found, "not found"));
+    const std::filesystem::path file = server.options.web_root / relative;
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return send(text_response(request, http::status::not_found, "not found"));
+    std::ostringstream body;
+    body << in.rdbuf();
+    auto response = std::make_shared<http::response<http::string_body>>(http::status::ok, request.version());
+    response->set(http::field::content_type, content_type(file));
+    response->set(http::field::cache_control, "no-cache");
+    // The page's token becomes a cookie, so its scripts and the stream carry it without ?token=.
+    if (!server.options.token.empty()) {
+      response->set(http::field::set_cookie, std::string(kTokenCookie) + "=" + server.options.token + "; Path=/; HttpOnly; SameSite=Strict");
+    }
+    response->keep_alive(request.keep_alive());
+    response->body() = body.str();
+    response->prepare_payload();
+    send(response);
+  }
+
+  std::shared_ptr<http::response<http::string_body>> text_response(const http::request<http::string_body>& request, http::status status,
+                                                                   const std::string& text) {
+    auto response = std::make_shared<http::response<http::string_body>>(status, request.version());
+    response->set(http::field::content_type, "text/plain; charset=utf-8");
+    response->keep_alive(false);
+    response->body() = text + "\n";
+    response->prepare_payload();
+    return response;
+  }
+
+  void send(std::shared_ptr<http::response<http::string_body>> response) {
+    http::async_write(stream, *response, [self = shared_from_this(), response](beast::error_code ec, size_t) {
+      if (ec || !response->keep_alive()) {
+        beast::error_code ignored;
+        self->stream.socket().shutdown(tcp::socket::shutdown_send, ignored);
+        return;
+      }
+      self->read();
+    });
+  }
+
+  beast::tcp_stream stream;
+  StreamServer::Impl& server;
+  beast::flat_buffer buffer;
+  std::optional<http::request_parser<http::string_body>> parser;
+};
+
+}  // namespace
+
+void StreamServer::Impl::accept() {
+  acceptor.async_accept(net::make_strand(io), [this](beast::error_code ec, tcp::socket socket) {
+    if (ec == net::error::operation_aborted) return;
+    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    accept();
+  });
+}
+
+bool StreamServer::Impl::authorised(const http::request<http::string_body>& request, const std::string& query) const {
+  if (options.token.empty()) return true;
+  return same_secret(query_value(query, "token"), options.token) ||
+         same_secret(cookie_value(std::string(request[http::field::cookie]), kTokenCookie), options.token);
+}
+
+void StreamServerOptions::validate() const {
+  if (port < 0 || port > 65535) throw InvalidInput("--port: must be in [0, 65535], got " + std::to_string(port));
+  if (client_queue_frames < 1) throw InvalidInput("client queue: must hold at least one frame");
+  if (max_client_message_bytes < 16) throw InvalidInput("client message limit: must be at least 16 bytes");
+  for (const char c : token) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') {
+      throw InvalidInput("--token: use letters, digits, '-', '_' or '.' only (it travels in a URL and a cookie)");
+    }
+  }
+  if (!web_root.empty() && !std::filesystem::is_regular_file(web_root / "index.html")) {
+    throw InvalidInput((web_root / "index.html").string() + ": the viewer is missing (build it with make build)");
+  }
+}
+
+std::string frame_message(const std::string& header_json, const std::string& draco_bytes) {
+  std::string message = "ZFM1";
+  const auto length = static_cast<std::uint32_t>(header_json.size());
+  for (int shift = 0; shift < 32; shift += 8) message.push_back(static_cast<char>((length >> shift) & 0xff));
+  message += header_json;
+  message += draco_bytes;
+  return message;
+}
+
+StreamServer::StreamServer(const StreamServerOptions& options, std::string hello_json) : impl_(std::make_unique<Impl>()) {
+  options.validate();
+  impl_->options = options;
+  impl_->hello = std::move(hello_json);
+  beast::error_code ec;
+  const net::ip::address address = net::ip::make_address(options.bind_address, ec);
+  if (ec) throw InvalidInput("--bind: \"" + options.bind_address + "\" is not an IP address");
+  const tcp::endpoint endpoint(address, static_cast<unsigned short>(options.port));
+  const std::string where = options.bind_address + ":" + std::to_string(options.port);
+  impl_->acceptor.open(endpoint.protocol(), ec);
+  if (!ec) impl_->acceptor.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) impl_->acceptor.bind(endpoint, ec);
+  if (!ec) impl_->acceptor.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) throw IoError(where + ": cannot listen: " + ec.message());
+  impl_->accept();
+  impl_->thread = std::thread([this] { impl_->io.run(); });
+}
+
+StreamServer::~StreamServer() {
+  impl_->io.stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+  // The network thread is gone: closing here races with nothing.
+  beast::error_code ignored;
+  impl_->acceptor.close(ignored);
+  for (const auto& session : impl_->sessions) beast::get_lowest_layer(session->ws).close();
+  impl_->sessions.clear();
+}
+
+int StreamServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void StreamServer::broadcast(std::string message) {
+  ++impl_->frames_broadcast;
+  auto shared = std::make_shared<const std::string>(std::move(message));
+  net::post(impl_->io, [impl = impl_.get(), shared] {
+    for (const auto& session : std::set<std::shared_ptr<Session>>(impl->sessions)) session->enqueue(shared, true);
+  });
+}
+
+StreamServerStats StreamServer::stats() const {
+  return {impl_->clients.load(), impl_->clients_total.load(), impl_->refused.load(), impl_->closed_bad_message.load(),
+          impl_->frames_broadcast.load(), impl_->frames_sent.load(), impl_->frames_skipped.load(), impl_->bytes_sent.load()};
+}
+
+}  // namespace zipfusion

@@ -1,0 +1,73 @@
+#pragma once
+//! \file
+//! The live stream (issue 8): one HTTP port serves the viewer's files and a WebSocket stream of
+//! frames (Boost.Beast). A frame is one binary message, `frame_message`: a small JSON header
+//! (frame number, capture time, stats) and the Draco-compressed mesh. A client first receives
+//! the stream's description (a text message: the rig, the volume, the frame rate).
+//!
+//! Every client has its own bounded queue: when a client reads slower than frames come, its
+//! oldest waiting frames are skipped, so it never slows the pipeline or the other clients.
+//! A client's messages to the server are small JSON commands ({"type": "pause" | "resume" |
+//! "ping"}); an oversized or malformed one closes that client only. With a token, the page and
+//! the stream refuse requests that carry neither ?token=... nor the cookie the page sets.
+//!
+//! Thread safety: broadcast() and stats() may be called from any thread; the network runs on the
+//! server's own thread.
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace zipfusion {
+
+struct StreamServerOptions {
+  std::string bind_address = "127.0.0.1";  // loopback unless told otherwise
+  int port = 8080;                         // 0: any free port (see StreamServer::port)
+  std::string token;                       // non-empty: clients must present it
+  std::filesystem::path web_root;          // the viewer's files; empty: no page, the stream only
+  int client_queue_frames = 2;             // frames waiting per client before the oldest is skipped
+  int max_client_message_bytes = 1024;     // a longer message from a client closes it
+
+  void validate() const;  // throws InvalidInput naming the option
+};
+
+struct StreamServerStats {
+  int clients = 0;               // connected WebSocket clients now
+  long clients_total = 0;        // accepted since the start
+  long refused = 0;              // requests refused for a missing or wrong token
+  long closed_bad_message = 0;   // clients closed for an oversized or malformed message
+  long frames_broadcast = 0;     // frames handed to broadcast()
+  long frames_sent = 0;          // frame messages written to clients, all clients together
+  long frames_skipped = 0;       // frame messages a slow client skipped
+  long bytes_sent = 0;
+};
+
+//! The frame message: "ZFM1", the header's length (uint32, little-endian), the JSON header, the
+//! Draco bytes.
+std::string frame_message(const std::string& header_json, const std::string& draco_bytes);
+
+class StreamServer {
+ public:
+  //! Binds and starts serving on its own thread. `hello_json` is sent to every client first.
+  //! Throws InvalidInput for bad options and IoError naming address:port when it cannot bind.
+  StreamServer(const StreamServerOptions& options, std::string hello_json);
+  ~StreamServer();  // stops and joins the thread
+  StreamServer(const StreamServer&) = delete;
+  StreamServer& operator=(const StreamServer&) = delete;
+
+  int port() const;  // the port bound (useful with port 0)
+
+  //! Queues a frame message for every connected client; returns at once.
+  void broadcast(std::string message);
+
+  StreamServerStats stats() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace zipfusion

@@ -1,0 +1,202 @@
+#include "zipfusion/stream/stream_server.h"
+
+#include <gtest/gtest.h>
+
+#include <utility>  // before Asio: Boost 1.74's awaitable.hpp uses std::exchange without it
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include "zipfusion/core/error.h"
+
+namespace zipfusion {
+namespace {
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = net::ip::tcp;
+namespace fs = std::filesystem;
+
+struct HttpReply {
+  int status = 0;
+  std::string body, cookie;
+};
+
+HttpReply http_get(int port, const std::string& target, const std::string& cookie = "") {
+  net::io_context io;
+  tcp::socket socket(io);
+  socket.connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
+  http::request<http::empty_body> request(http::verb::get, target, 11);
+  request.set(http::field::host, "127.0.0.1");
+  if (!cookie.empty()) request.set(http::field::cookie, cookie);
+  http::write(socket, request);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> response;
+  http::read(socket, buffer, response);
+  return {static_cast<int>(response.result_int()), response.body(), std::string(response[http::field::set_cookie])};
+}
+
+// A WebSocket client of the stream on its own connection (blocking calls).
+struct Client {
+  net::io_context io;
+  websocket::stream<tcp::socket> ws{io};
+
+  explicit Client(int port, const std::string& target = "/stream", const std::string& cookie = "") {
+    ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
+    ws.set_option(websocket::stream_base::decorator([cookie](websocket::request_type& request) {
+      if (!cookie.empty()) request.set(http::field::cookie, cookie);
+    }));
+    ws.handshake("127.0.0.1", target);
+  }
+
+  std::string read(bool* binary = nullptr) {
+    beast::flat_buffer buffer;
+    ws.read(buffer);
+    if (binary != nullptr) *binary = ws.got_binary();
+    return beast::buffers_to_string(buffer.data());
+  }
+};
+
+class StreamServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("zf_stream_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_ / "draco");
+    std::ofstream(dir_ / "index.html") << "<!doctype html><title>viewer</title>";
+    std::ofstream(dir_ / "draco" / "decoder.js") << "// decoder";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
+  StreamServer server({.port = 0, .web_root = dir_}, R"({"format":"zipfusion.stream/1"})");
+  ASSERT_GT(server.port(), 0);
+  const HttpReply page = http_get(server.port(), "/");
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.body.find("<title>viewer</title>"), std::string::npos);
+  EXPECT_EQ(http_get(server.port(), "/draco/decoder.js").status, 200);
+  for (const char* bad : {"/../etc/passwd", "/draco/../../x", "/.hidden", "/a/b/c.js", "/missing.js"}) {
+    EXPECT_EQ(http_get(server.port(), bad).status, 404) << bad;
+  }
+  Client client(server.port());
+  bool binary = true;
+  EXPECT_EQ(client.read(&binary), R"({"format":"zipfusion.stream/1"})");
+  EXPECT_FALSE(binary);
+  while (server.stats().clients < 1) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const std::string message = frame_message(R"({"frame":7})", std::string("\x01\x02\x03", 3));
+  server.broadcast(message);
+  EXPECT_EQ(client.read(&binary), message);
+  EXPECT_TRUE(binary);
+  ASSERT_EQ(message.substr(0, 4), "ZFM1");
+  EXPECT_EQ(static_cast<unsigned char>(message[4]), 11u);  // the header's length, little-endian
+  EXPECT_EQ(message.substr(8, 11), R"({"frame":7})");
+  // A ping is answered with its own time.
+  client.ws.text(true);
+  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":12.5})")));
+  EXPECT_EQ(client.read(), R"({"t":12.5,"type":"pong"})");
+}
+
+TEST_F(StreamServerTest, WithATokenOnlyItsHoldersAreServed) {
+  StreamServer server({.port = 0, .token = "s3cret", .web_root = dir_}, "{}");
+  EXPECT_EQ(http_get(server.port(), "/").status, 401);
+  EXPECT_EQ(http_get(server.port(), "/?token=wrong").status, 401);
+  EXPECT_THROW(Client(server.port()), boost::system::system_error);
+  EXPECT_THROW(Client(server.port(), "/stream?token=s3cre"), boost::system::system_error);
+  const HttpReply page = http_get(server.port(), "/?token=s3cret");
+  EXPECT_EQ(page.status, 200);
+  ASSERT_NE(page.cookie.find("zf_token=s3cret"), std::string::npos);
+  // The page's cookie admits its scripts and its stream.
+  EXPECT_EQ(http_get(server.port(), "/draco/decoder.js", "zf_token=s3cret").status, 200);
+  Client with_cookie(server.port(), "/stream", "zf_token=s3cret");
+  EXPECT_EQ(with_cookie.read(), "{}");
+  Client with_query(server.port(), "/stream?token=s3cret");
+  EXPECT_EQ(with_query.read(), "{}");
+  EXPECT_GE(server.stats().refused, 4);
+  EXPECT_THROW(StreamServer({.port = 0, .token = "a b"}, "{}"), InvalidInput);
+}
+
+TEST_F(StreamServerTest, BadMessagesCloseOnlyTheirClient) {
+  StreamServer server({.port = 0}, "{}");
+  Client good(server.port()), garbage(server.port()), oversized(server.port());
+  for (Client* c : {&good, &garbage, &oversized}) EXPECT_EQ(c->read(), "{}");
+  garbage.ws.text(true);
+  garbage.ws.write(net::buffer(std::string("this is not json")));
+  oversized.ws.text(true);
+  oversized.ws.write(net::buffer(std::string(4096, ' ')));
+  for (auto [c, code] : {std::pair(&garbage, websocket::close_code::policy_error), std::pair(&oversized, websocket::close_code::too_big)}) {
+    try {
+      c->read();
+      ADD_FAILURE() << "a bad client was not closed";
+    } catch (const boost::system::system_error& e) {
+      // A closing handshake with the reason, or (the server may drop the connection while the
+      // oversized message is still arriving) a broken connection.
+      if (e.code() == websocket::error::closed) {
+        EXPECT_EQ(c->ws.reason().code, code);
+      }
+    }
+  }
+  while (server.stats().clients > 1) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  server.broadcast(frame_message("{}", "x"));
+  bool binary = false;
+  EXPECT_EQ(good.read(&binary).size(), 4u + 4u + 2u + 1u);
+  EXPECT_TRUE(binary);
+  EXPECT_EQ(server.stats().closed_bad_message, 2);
+}
+
+// Twenty viewers, one of which never reads: the nineteen others get every frame, the stalled one
+// skips, and broadcasting never waits for it.
+TEST_F(StreamServerTest, AStalledClientSlowsNobody) {
+  StreamServer server({.port = 0}, "{}");
+  constexpr int kReaders = 19, kFrames = 120;
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int i = 0; i < kReaders + 1; ++i) clients.push_back(std::make_unique<Client>(server.port()));
+  for (auto& c : clients) c->read();  // the hello
+  while (server.stats().clients < kReaders + 1) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::vector<std::atomic<int>> received(kReaders);
+  std::atomic<bool> done{false};
+  std::vector<std::thread> readers;
+  for (int i = 0; i < kReaders; ++i) {
+    readers.emplace_back([&, i] {
+      try {
+        while (received[i] < kFrames) {
+          clients[i]->read();
+          ++received[i];
+        }
+      } catch (const std::exception&) {
+      }
+    });
+  }
+  // 120 frames of 200 kB at 60 per second: more than a stalled socket's buffers hold.
+  const std::string frame = frame_message("{}", std::string(200 * 1024, 'm'));
+  double longest_broadcast_ms = 0;
+  for (int k = 0; k < kFrames; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    server.broadcast(frame);
+    longest_broadcast_ms = std::max(longest_broadcast_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    std::this_thread::sleep_for(std::chrono::microseconds(16667));
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  for (int i = 0; i < kReaders; ++i) {
+    while (received[i] < kFrames && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  done = true;
+  for (int i = 0; i < kReaders; ++i) EXPECT_EQ(received[i], kFrames) << "reader " << i;
+  for (int i = 0; i < kReaders; ++i) clients[i]->ws.next_layer().close();
+  for (auto& t : readers) t.join();
+  const StreamServerStats stats = server.stats();
+  EXPECT_GT(stats.frames_skipped, kFrames / 2) << "the stalled client should skip most frames";
+  EXPECT_LT(longest_broadcast_ms, 50.0) << "broadcast must hand over, not send";
+}
+
+}  // namespace
+}  // namespace zipfusion
