@@ -9,7 +9,7 @@
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
-#include "cli/rig_poses.h"
+#include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
@@ -26,15 +26,8 @@ struct ReconstructArgs {
   std::string capture;
   std::string out;
   std::string frames;
-  std::string mode = "zipper";
-  std::string filter = "bilateral";
   std::string format = "ply";
-  std::string rig;
-  std::string register_mode = "auto";
-  bool no_volume_crop = false;
-  ReconstructOptions options;
-  BackgroundRegistrationOptions background;
-  int once_frames = 8;
+  ReconstructionArgs reconstruction;
 };
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
@@ -46,60 +39,19 @@ double median_of(std::vector<double> values) {
 }
 
 void run_reconstruct(ReconstructArgs& args) {
-  ReconstructOptions& options = args.options;
-  options.bilateral = args.filter != "none";
-  options.filter.separable = args.filter == "bilateral-separable";
-  options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
-  options.foreground.crop_to_volume = !args.no_volume_crop;
-  options.validate();
-  args.background.validate();
   const Capture capture = Capture::open(args.capture);
-  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
-  // auto: refine in the background unless the rig's poses are marked as trusted.
-  if (args.register_mode == "auto") args.register_mode = rig.poses_trusted ? "off" : "background";
+  Reconstruction reconstruction(capture, args.reconstruction, range);
+  FrameReconstructor& reconstructor = reconstruction.reconstructor();
 
   const fs::path out_dir = args.out;
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
 
-  // --register once: refine on frames spread over the range, then keep those poses.
-  Rig start_rig = rig;
-  nlohmann::ordered_json pose_updates = nlohmann::json::array();
-  if (args.register_mode == "once") {
-    args.background.registration.validate();
-    std::vector<std::vector<Image<float>>> depth;
-    const int count = std::min(args.once_frames, range.end - range.begin);
-    for (int i = 0; i < count; ++i) {
-      depth.push_back(registration_depth(rig, capture.load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
-    }
-    const RegistrationResult refined = register_rig(rig, depth, args.background.registration);
-    for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];
-    pose_updates.push_back({{"frame", range.begin}, {"version", 1}});
-  }
-  std::unique_ptr<BackgroundRegistration> background;
-  if (args.register_mode == "background") background = std::make_unique<BackgroundRegistration>(rig, args.background);
-  int pose_version = 0;
-
-  FrameReconstructor reconstructor(start_rig, options);
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
   const std::string extension = "." + args.format;
-  // --register background: refined poses are swapped in between frames on the reconstruction
-  // thread, and frame sets are offered to the worker there; neither waits for a refinement.
-  PipelineOptions pipeline_options;
-  if (background) {
-    pipeline_options.before_reconstruct = [&](const FrameSet& set, FrameReconstructor& target) {
-      const auto poses = background->latest_poses();
-      if (poses->version != pose_version) {
-        target.set_poses(poses->world_from_depth);
-        pose_version = poses->version;
-        pose_updates.push_back({{"frame", set.index}, {"version", pose_version}, {"refined_on_frame", poses->frame}});
-      }
-      background->offer(set);
-    };
-  }
   // Decoding, reconstruction and writing overlap: each runs on its own thread.
   const PipelineStats pipeline = run_pipeline(capture_source(capture, range.begin, range.end), reconstructor, [&](PipelineFrame& frame) {
     const FrameResult& result = frame.result;
@@ -118,35 +70,22 @@ void run_reconstruct(ReconstructArgs& args) {
                       {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
     show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
-  }, pipeline_options);
+  }, reconstruction.pipeline_options());
 
+  const ReconstructionArgs& r = args.reconstruction;
   nlohmann::ordered_json stats;
   stats["capture"] = args.capture;
-  stats["mode"] = args.mode;
-  stats["filter"] = args.filter;
-  stats["rig"] = args.rig.empty() ? (fs::path(args.capture) / "rig.json").string() : args.rig;
-  stats["options"] = {{"min_depth_m", options.foreground.min_depth_m},
-                      {"max_depth_m", options.foreground.max_depth_m},
-                      {"crop_to_volume", options.foreground.crop_to_volume},
-                      {"max_depth_jump_m", options.sdc.max_depth_jump_m},
-                      {"bilateral_sigma_px", options.filter.spatial_sigma_px},
-                      {"bilateral_radius_px", options.filter.radius_px},
-                      {"bilateral_range_sigma_m", options.filter.range_sigma_m},
-                      {"redundancy_distance_m", options.zipper.redundancy_distance_m},
-                      {"coarse_levels", options.zipper.coarse_levels},
-                      {"coarse_shrink", options.zipper.coarse_shrink},
-                      {"clipping_distance_m", options.zipper.clipping_distance_m},
-                      {"max_seam_edge_m", options.zipper.max_seam_edge_m},
-                      {"min_overlap_share", options.zipper.min_overlap_share},
-                      {"hole_closing_px", options.zipper.hole_closing_px},
-                      {"threads", options.num_threads}};
-  stats["register"] = args.register_mode;
-  stats["pose_updates"] = pose_updates;
+  stats["mode"] = r.mode;
+  stats["filter"] = r.filter;
+  stats["rig"] = r.rig.empty() ? (fs::path(args.capture) / "rig.json").string() : r.rig;
+  stats["options"] = options_json(r.options);
+  stats["register"] = reconstruction.register_mode();
+  stats["pose_updates"] = reconstruction.pose_updates();
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
   stats["wall_ms"] = pipeline.wall_ms;
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
-  std::cout << "wrote " << frames.size() << " meshes (" << args.mode << ") to " << out_dir.string() << ", median reconstruction "
+  std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
 }
 
@@ -154,52 +93,12 @@ void run_reconstruct(ReconstructArgs& args) {
 
 void add_reconstruct_command(CLI::App& app) {
   auto args = std::make_shared<ReconstructArgs>();
-  ReconstructOptions& o = args->options;
   CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct one mesh per frame of a capture");
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
   cmd->add_option("--out", args->out, "Output folder: NNNNNN.ply per frame and stats.json")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
-  cmd->add_option("--mode", args->mode, "zipper: one connected mesh; separate: one SDC mesh per camera, concatenated")
-      ->check(CLI::IsMember({"zipper", "separate"}))
-      ->capture_default_str();
-  cmd->add_option("--filter", args->filter,
-                  "Depth filter before triangulation: bilateral (the paper's square window), bilateral-separable (a row then a "
-                  "column pass, 4.5x faster) or none")
-      ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
-      ->capture_default_str();
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
-  cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
-  cmd->add_option("--register", args->register_mode,
-                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off, "
-                  "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "
-                  "register)")
-      ->check(CLI::IsMember({"auto", "background", "once", "off"}))
-      ->capture_default_str();
-  cmd->add_option("--register-every", args->background.every_frames, "background: frames between two refinements")->capture_default_str();
-  cmd->add_option("--register-window", args->background.window_frames, "background: newest offered frame sets refined together")
-      ->capture_default_str();
-  cmd->add_option("--lod", o.depth_level, "Level of detail: reconstruct from every 2^LOD-th depth pixel (1: a quarter of the triangles)")
-      ->capture_default_str();
-  cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
-  cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
-  cmd->add_flag("--no-volume-crop", args->no_volume_crop, "Keep depth outside the rig's capture volume");
-  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres")
-      ->capture_default_str();
-  cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
-  cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
-  cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
-  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres")
-      ->capture_default_str();
-  cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L")->capture_default_str();
-  cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r")->capture_default_str();
-  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
-      ->capture_default_str();
-  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
-  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Holes up to 2*this+1 pixels wide are not borders when judging which camera sees better")
-      ->capture_default_str();
-  cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
-      ->capture_default_str();
-  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_reconstruction_options(cmd, args->reconstruction);
   cmd->callback([args] { run_reconstruct(*args); });
 }
 

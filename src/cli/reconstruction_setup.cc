@@ -1,0 +1,118 @@
+#include "cli/reconstruction_setup.h"
+
+#include <algorithm>
+
+#include "cli/rig_poses.h"
+
+namespace zipfusion::cli {
+
+void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
+  ReconstructOptions& o = args.options;
+  cmd->add_option("--mode", args.mode, "zipper: one connected mesh; separate: one SDC mesh per camera, concatenated")
+      ->check(CLI::IsMember({"zipper", "separate"}))
+      ->capture_default_str();
+  cmd->add_option("--filter", args.filter,
+                  "Depth filter before triangulation: bilateral (the paper's square window), bilateral-separable (a row then a "
+                  "column pass, 4x faster) or none")
+      ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--rig", args.rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--register", args.register_mode,
+                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off, "
+                  "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "
+                  "register)")
+      ->check(CLI::IsMember({"auto", "background", "once", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements")->capture_default_str();
+  cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together")
+      ->capture_default_str();
+  cmd->add_option("--lod", o.depth_level, "Level of detail: reconstruct from every 2^LOD-th depth pixel (1: a quarter of the triangles)")
+      ->capture_default_str();
+  cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
+  cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
+  cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
+  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres")
+      ->capture_default_str();
+  cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
+  cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
+  cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
+  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres")
+      ->capture_default_str();
+  cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L")->capture_default_str();
+  cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r")->capture_default_str();
+  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
+      ->capture_default_str();
+  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
+  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Holes up to 2*this+1 pixels wide are not borders when judging which camera sees better")
+      ->capture_default_str();
+  cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+}
+
+nlohmann::ordered_json options_json(const ReconstructOptions& options) {
+  return {{"min_depth_m", options.foreground.min_depth_m},
+          {"max_depth_m", options.foreground.max_depth_m},
+          {"crop_to_volume", options.foreground.crop_to_volume},
+          {"lod", options.depth_level},
+          {"max_depth_jump_m", options.sdc.max_depth_jump_m},
+          {"bilateral_sigma_px", options.filter.spatial_sigma_px},
+          {"bilateral_radius_px", options.filter.radius_px},
+          {"bilateral_range_sigma_m", options.filter.range_sigma_m},
+          {"redundancy_distance_m", options.zipper.redundancy_distance_m},
+          {"coarse_levels", options.zipper.coarse_levels},
+          {"coarse_shrink", options.zipper.coarse_shrink},
+          {"clipping_distance_m", options.zipper.clipping_distance_m},
+          {"max_seam_edge_m", options.zipper.max_seam_edge_m},
+          {"min_overlap_share", options.zipper.min_overlap_share},
+          {"hole_closing_px", options.zipper.hole_closing_px},
+          {"threads", options.num_threads}};
+}
+
+Reconstruction::Reconstruction(const Capture& capture, ReconstructionArgs& args, const FrameRange& range) {
+  ReconstructOptions& options = args.options;
+  options.bilateral = args.filter != "none";
+  options.filter.separable = args.filter == "bilateral-separable";
+  options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
+  options.foreground.crop_to_volume = !args.no_volume_crop;
+  options.validate();
+  args.background.validate();
+  rig_ = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  register_mode_ = args.register_mode == "auto" ? (rig_.poses_trusted ? "off" : "background") : args.register_mode;
+
+  // --register once: refine on frames spread over the range, then keep those poses.
+  Rig start_rig = rig_;
+  if (register_mode_ == "once") {
+    args.background.registration.validate();
+    std::vector<std::vector<Image<float>>> depth;
+    const int count = std::min(args.once_frames, range.end - range.begin);
+    for (int i = 0; i < count; ++i) {
+      depth.push_back(registration_depth(rig_, capture.load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
+    }
+    const RegistrationResult refined = register_rig(rig_, depth, args.background.registration);
+    for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];
+    pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
+  }
+  if (register_mode_ == "background") background_ = std::make_unique<BackgroundRegistration>(rig_, args.background);
+  reconstructor_ = std::make_unique<FrameReconstructor>(start_rig, options);
+}
+
+PipelineOptions Reconstruction::pipeline_options() {
+  PipelineOptions options;
+  // --register background: refined poses are swapped in between frames on the reconstruction
+  // thread, and frame sets are offered to the worker there; neither waits for a refinement.
+  if (background_) {
+    options.before_reconstruct = [this](const FrameSet& set, FrameReconstructor& target) {
+      const auto poses = background_->latest_poses();
+      if (poses->version != pose_version_) {
+        target.set_poses(poses->world_from_depth);
+        pose_version_ = poses->version;
+        pose_updates_.push_back({{"frame", set.index}, {"version", pose_version_}, {"refined_on_frame", poses->frame}});
+      }
+      background_->offer(set);
+    };
+  }
+  return options;
+}
+
+}  // namespace zipfusion::cli

@@ -1,0 +1,59 @@
+#pragma once
+// What `reconstruct` and `serve` share: the reconstruction's options on the command line, and
+// the reconstruction of a capture they set up (the rig and its poses, --register once or in the
+// background).
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli/frame_range.h"
+#include "zipfusion/io/capture.h"
+#include "zipfusion/pipeline/background_registration.h"
+#include "zipfusion/pipeline/pipeline.h"
+
+namespace zipfusion::cli {
+
+struct ReconstructionArgs {
+  std::string mode = "zipper";
+  std::string filter = "bilateral";
+  std::string rig;
+  std::string register_mode = "auto";
+  bool no_volume_crop = false;
+  ReconstructOptions options;
+  BackgroundRegistrationOptions background;
+  int once_frames = 8;
+};
+
+//! --mode, --filter, --rig, --register*, --lod, the depth, filter and zipper thresholds, --threads.
+void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args);
+
+//! The options as JSON (stats.json, the stream's description).
+nlohmann::ordered_json options_json(const ReconstructOptions& options);
+
+//! A capture's reconstruction. With --register auto the poses are refined in the background
+//! unless the rig marks them as trusted; with once, they are refined before the first frame.
+class Reconstruction {
+ public:
+  //! Throws InvalidInput for bad options or a bad --rig file.
+  Reconstruction(const Capture& capture, ReconstructionArgs& args, const FrameRange& range);
+
+  FrameReconstructor& reconstructor() { return *reconstructor_; }
+  const Rig& rig() const { return rig_; }  // the poses reconstruction starts from
+  const std::string& register_mode() const { return register_mode_; }
+  //! The pipeline's options, with the background registration's hook when it runs.
+  PipelineOptions pipeline_options();
+  //! Every pose change so far: [{frame, version, refined_on_frame?}].
+  const nlohmann::ordered_json& pose_updates() const { return pose_updates_; }
+
+ private:
+  Rig rig_;
+  std::string register_mode_;
+  std::unique_ptr<FrameReconstructor> reconstructor_;
+  std::unique_ptr<BackgroundRegistration> background_;
+  nlohmann::ordered_json pose_updates_ = nlohmann::json::array();
+  int pose_version_ = 0;
+};
+
+}  // namespace zipfusion::cli
