@@ -17,6 +17,7 @@ packages=(
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md
+  chromium                           # the viewer's tests run in a real (headless) browser
   libopen3d-dev                      # bench only: Open3D TSDF/Poisson side by side (never in the library)
 )
 
@@ -26,6 +27,11 @@ for p in "${packages[@]}"; do
     missing+=("$p")
   fi
 done
+
+# Node.js and npm build the viewer (web/: three.js from the npm registry, bundled at build time).
+# Many machines bring their own Node.js; Debian's is installed only when there is none.
+if ! command -v node >/dev/null 2>&1; then missing+=(nodejs); fi
+if ! command -v npm >/dev/null 2>&1; then missing+=(npm); fi
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present"

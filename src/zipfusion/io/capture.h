@@ -34,6 +34,7 @@ struct CameraFrame {
 //! All cameras' images of one frame, in rig order.
 struct FrameSet {
   int index = 0;
+  double capture_time_ms = 0;  // when the frame set was captured, milliseconds since the Unix epoch; 0 = unknown
   std::vector<CameraFrame> cameras;
 };
 

@@ -96,7 +96,10 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
   try {
     while (std::optional<DecodedFrame> item = decoded.pop()) {
       if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
-      PipelineFrame frame{.index = item->frames.index, .decode_ms = item->decode_ms, .result = reconstructor.reconstruct(item->frames)};
+      PipelineFrame frame{.index = item->frames.index,
+                          .capture_time_ms = item->frames.capture_time_ms,
+                          .decode_ms = item->decode_ms,
+                          .result = reconstructor.reconstruct(item->frames)};
       if (!reconstructed.push(std::move(frame))) break;
       ++stats.frames;
     }

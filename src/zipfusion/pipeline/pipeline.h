@@ -93,6 +93,7 @@ FrameSource capture_source(const Capture& capture, int begin, int end);
 //! One reconstructed frame set, as the sink sees it.
 struct PipelineFrame {
   int index = 0;
+  double capture_time_ms = 0;  // the frame set's, carried through
   double decode_ms = 0;
   FrameResult result;
 };

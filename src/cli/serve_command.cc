@@ -1,0 +1,215 @@
+// zipfusion serve: the live stream of a capture (issue 8). Frames are played at the capture's
+// frame rate, reconstructed, compressed with Draco and streamed over one HTTP port to the viewer
+// in the browser (web/, served from the same port).
+
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "cli/commands.h"
+#include "cli/frame_range.h"
+#include "cli/reconstruction_setup.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/draco_codec.h"
+#include "zipfusion/stream/stream_server.h"
+
+namespace zipfusion::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct ServeArgs {
+  std::string capture;
+  std::string frames;
+  bool loop = false;
+  double seconds = 0;  // 0: until interrupted (or the end, without --loop)
+  StreamServerOptions server;
+  std::string web;
+  DracoOptions draco;
+  ReconstructionArgs reconstruction;
+};
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop = true; }
+
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+double epoch_ms() {
+  return std::chrono::duration<double, std::milli>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// The viewer's files: --web, or web/ next to the executable (the build puts it there).
+fs::path viewer_folder(const std::string& web) {
+  if (!web.empty()) return web;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::path("web") : exe.parent_path() / "web";
+}
+
+nlohmann::ordered_json matrix_json(const Rigid3d& t) {
+  nlohmann::ordered_json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({t.matrix()(r, 0), t.matrix()(r, 1), t.matrix()(r, 2), t.matrix()(r, 3)});
+  return rows;
+}
+
+// What a viewer learns first: the stream's format, frame rate, cameras (for the views from
+// each camera) and volume.
+std::string hello_json(const Rig& rig, const ServeArgs& args, const QuantizationBox& box) {
+  nlohmann::ordered_json cameras = nlohmann::json::array();
+  for (const CameraModel& cam : rig.cameras) {
+    const Intrinsics& k = cam.depth_intrinsics;
+    cameras.push_back({{"name", cam.name},
+                       {"world_from_depth", matrix_json(cam.world_from_depth)},
+                       {"intrinsics", {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}}}});
+  }
+  nlohmann::ordered_json hello = {{"type", "hello"},
+                                  {"format", "zipfusion.stream/1"},
+                                  {"capture", fs::path(args.capture).filename().string()},
+                                  {"fps", rig.fps},
+                                  {"lod", args.reconstruction.options.depth_level},
+                                  {"position_bits", args.draco.position_bits},
+                                  {"quantization_step_m", box.range / static_cast<float>((1u << args.draco.position_bits) - 1)},
+                                  {"cameras", cameras}};
+  if (rig.volume) {
+    hello["volume"] = {{"min", {rig.volume->min.x(), rig.volume->min.y(), rig.volume->min.z()}},
+                       {"max", {rig.volume->max.x(), rig.volume->max.y(), rig.volume->max.z()}}};
+  }
+  return hello.dump();
+}
+
+// Frame sets at the capture's frame rate, like a live camera: frame i is handed over at
+// start + i / fps (a slow pipeline drops the oldest; the source never waits for it). With --loop
+// the range repeats, decoded once and replayed from memory.
+class PacedSource {
+ public:
+  PacedSource(const Capture& capture, const FrameRange& range, bool loop, double seconds)
+      : capture_(capture), range_(range), loop_(loop), period_(1.0 / capture.rig().fps), seconds_(seconds) {}
+
+  std::optional<FrameSet> next(double& decode_ms) {
+    if (g_stop) return std::nullopt;
+    const int count = range_.end - range_.begin;
+    if (!loop_ && sequence_ >= count) return std::nullopt;
+    const int index = range_.begin + static_cast<int>(sequence_ % count);
+    const Clock::time_point due = start_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(sequence_ * period_));
+    if (seconds_ > 0 && std::chrono::duration<double>(due - start_).count() >= seconds_) return std::nullopt;
+    FrameSet set;
+    decode_ms = 0;
+    if (loop_ && static_cast<int>(cache_.size()) == count) {
+      set = cache_[index - range_.begin];
+    } else {
+      const Clock::time_point t = Clock::now();
+      set = capture_.load_frame(index);
+      decode_ms = ms_since(t);
+      if (loop_) cache_.push_back(set);
+    }
+    std::this_thread::sleep_until(due);
+    ++sequence_;
+    set.capture_time_ms = epoch_ms();  // now is when a camera would have delivered it
+    return set;
+  }
+
+ private:
+  const Capture& capture_;
+  FrameRange range_;
+  bool loop_;
+  double period_;
+  double seconds_;
+  const Clock::time_point start_ = Clock::now();
+  long sequence_ = 0;
+  std::vector<FrameSet> cache_;
+};
+
+void run_serve(ServeArgs& args) {
+  args.draco.validate();
+  args.server.web_root = viewer_folder(args.web);
+  args.server.validate();
+  const Capture capture = Capture::open(args.capture);
+  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
+  Reconstruction reconstruction(capture, args.reconstruction, range);
+  // One quantisation grid for the whole stream: the capture volume (positions outside it are
+  // clamped by the grid's growth on the first frame that has them).
+  const QuantizationBox box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);
+  StreamServer server(args.server, hello_json(reconstruction.rig(), args, box));
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  std::string url = "http://" + args.server.bind_address + ":" + std::to_string(server.port()) + "/";
+  if (!args.server.token.empty()) url += "?token=" + args.server.token;
+  std::cout << "serving " << url << " (" << capture.camera_count() << " cameras, " << capture.rig().fps << " fps, lod "
+            << args.reconstruction.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;
+
+  PacedSource paced(capture, range, args.loop, args.seconds);
+  const FrameSource source = [&](double& decode_ms) { return paced.next(decode_ms); };
+  PipelineOptions pipeline_options = reconstruction.pipeline_options();
+  pipeline_options.source_policy = QueuePolicy::kDropOldest;  // live: never fall behind
+  pipeline_options.queue_depth = 1;
+
+  double last_report = epoch_ms();
+  long frames_since = 0, bytes_since = 0;
+  const PipelineStats stats = run_pipeline(source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
+    const Clock::time_point t = Clock::now();
+    const std::string draco = encode_draco(frame.result.mesh, box, args.draco);
+    const double encode_ms = ms_since(t);
+    const nlohmann::ordered_json header = {{"type", "frame"},
+                                           {"frame", frame.index},
+                                           {"capture_time_ms", frame.capture_time_ms},
+                                           {"sent_time_ms", epoch_ms()},
+                                           {"triangles", frame.result.mesh.triangle_count()},
+                                           {"vertices", frame.result.mesh.vertex_count()},
+                                           {"cameras_used", frame.result.cameras_used},
+                                           {"reconstruct_ms", frame.result.times.total_ms},
+                                           {"encode_ms", encode_ms},
+                                           {"bytes", draco.size()}};
+    server.broadcast(frame_message(header.dump(), draco));
+    ++frames_since;
+    bytes_since += static_cast<long>(draco.size());
+    const double now = epoch_ms();
+    if (now - last_report > 5000) {
+      const StreamServerStats s = server.stats();
+      std::printf("frame %d: %.1f fps, %.0f kB/frame (%.1f Mbit/s), %d clients, %ld frames skipped by slow clients\n", frame.index,
+                  frames_since * 1000.0 / (now - last_report), bytes_since / 1024.0 / std::max(1L, frames_since),
+                  bytes_since * 8e-3 / (now - last_report), s.clients, s.frames_skipped);
+      std::fflush(stdout);
+      last_report = now;
+      frames_since = bytes_since = 0;
+    }
+  }, pipeline_options);
+  const StreamServerStats s = server.stats();
+  std::printf("served %d frame sets (%ld dropped by the pipeline to keep up), %ld frames to %ld clients (%ld skipped by slow clients), %.1f MB\n",
+              stats.frames, stats.dropped, s.frames_sent, s.clients_total, s.frames_skipped, s.bytes_sent / 1e6);
+}
+
+}  // namespace
+
+void add_serve_command(CLI::App& app) {
+  auto args = std::make_shared<ServeArgs>();
+  args->reconstruction.options.depth_level = 1;  // a stream wants a quarter of the triangles (issue 8's budget)
+  CLI::App* cmd = app.add_subcommand("serve", "Stream the reconstruction live to a viewer in the browser");
+  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
+  cmd->add_flag("--loop", args->loop, "Play the frames again and again (decoded once, kept in memory)");
+  cmd->add_option("--seconds", args->seconds, "Stop after this many seconds of stream (0: at the end, or never with --loop)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--port", args->server.port, "HTTP port for the viewer and the stream (0: any free port)")->capture_default_str();
+  cmd->add_option("--bind", args->server.bind_address, "Address to listen on (127.0.0.1: this machine only; 0.0.0.0: every network)")
+      ->capture_default_str();
+  cmd->add_option("--token", args->server.token, "Refuse clients that do not give this token (open the page as /?token=...)");
+  cmd->add_option("--web", args->web, "Folder of the viewer's files (default: web/ beside the executable)");
+  cmd->add_option("--position-bits", args->draco.position_bits, "Draco: bits per coordinate over the capture volume")->capture_default_str();
+  cmd->add_option("--compression-level", args->draco.compression_level, "Draco: 0 (fastest) to 10 (smallest)")->capture_default_str();
+  add_reconstruction_options(cmd, args->reconstruction);
+  cmd->callback([args] { run_serve(*args); });
+}
+
+}  // namespace zipfusion::cli

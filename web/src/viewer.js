@@ -1,0 +1,213 @@
+// The viewer of zipfusion's live stream: one WebSocket to /stream on the page's own server; each
+// binary message is a frame ("ZFM1", header length, JSON header, Draco mesh), decoded by three.js's
+// DRACOLoader in its workers and drawn. The first (text) message describes the stream: frame rate,
+// cameras (the "view" choices) and the capture volume.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { DRACOLoader } from 'three/examples/jsm/loaders/DRACOLoader.js';
+
+const $ = (id) => document.getElementById(id);
+
+// --- scene -----------------------------------------------------------------------------------
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+renderer.setSize(window.innerWidth, window.innerHeight);
+$('view').appendChild(renderer.domElement);
+
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x1b1d22);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404048, 2.2));
+const sun = new THREE.DirectionalLight(0xffffff, 1.2);
+sun.position.set(2, -3, 4);
+scene.add(sun);
+
+// The capture's world is z-up (the floor at z = 0).
+const camera = new THREE.PerspectiveCamera(45, window.innerWidth / window.innerHeight, 0.05, 50);
+camera.up.set(0, 0, 1);
+camera.position.set(0, -3.2, 1.4);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.target.set(0, 0, 0.9);
+controls.update();
+
+const grid = new THREE.GridHelper(4, 8, 0x3a3f48, 0x2b2f36);
+grid.rotation.x = Math.PI / 2;  // into the z = 0 plane
+scene.add(grid);
+
+const coloured = new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide });
+const shaded = new THREE.MeshStandardMaterial({ color: 0xb9bcc4, roughness: 0.8, side: THREE.DoubleSide, flatShading: true });
+const mesh = new THREE.Mesh(new THREE.BufferGeometry(), coloured);
+scene.add(mesh);
+
+function applyMaterial() {
+  mesh.material = $('color').checked ? coloured : shaded;
+  coloured.wireframe = shaded.wireframe = $('wireframe').checked;
+}
+$('color').addEventListener('change', applyMaterial);
+$('wireframe').addEventListener('change', applyMaterial);
+
+window.addEventListener('resize', () => {
+  renderer.setSize(window.innerWidth, window.innerHeight);
+  if ($('viewpoint').value === 'free') {
+    camera.aspect = window.innerWidth / window.innerHeight;
+    camera.updateProjectionMatrix();
+  }
+});
+
+// --- views from each camera --------------------------------------------------------------------
+let cameras = [];
+
+// A capture camera's pose as the three.js camera: its axes are OpenCV's (x right, y down, z
+// forward), three.js looks down −z with y up, so the pose turns half a turn about x.
+function lookThrough(model) {
+  const m = model.world_from_depth;
+  const world = new THREE.Matrix4().set(...m[0], ...m[1], ...m[2], ...m[3]);
+  const flip = new THREE.Matrix4().makeRotationX(Math.PI);
+  world.multiply(flip);
+  world.decompose(camera.position, camera.quaternion, new THREE.Vector3());
+  const k = model.intrinsics;
+  camera.fov = THREE.MathUtils.radToDeg(2 * Math.atan(k.height / 2 / k.fy));
+  camera.aspect = k.width / k.height;
+  camera.updateProjectionMatrix();
+}
+
+$('viewpoint').addEventListener('change', () => {
+  const choice = $('viewpoint').value;
+  controls.enabled = choice === 'free';
+  if (choice === 'free') {
+    camera.up.set(0, 0, 1);
+    camera.position.set(0, -3.2, 1.4);
+    camera.fov = 45;
+    camera.aspect = window.innerWidth / window.innerHeight;
+    camera.updateProjectionMatrix();
+    controls.target.set(0, 0, 0.9);
+    controls.update();
+  } else {
+    lookThrough(cameras[Number(choice)]);
+  }
+});
+
+// --- statistics ------------------------------------------------------------------------------
+const drawnTimes = [];     // performance.now() of the last frames drawn
+const latencies = [];      // ms, capture → drawn, of the last frames
+const received = [];       // [performance.now(), bytes] of the last messages
+function median(values) {
+  if (values.length === 0) return NaN;
+  const sorted = [...values].sort((a, b) => a - b);
+  return sorted[Math.floor(sorted.length / 2)];
+}
+function trim(list, keepMs, now, at = (x) => x) {
+  while (list.length > 0 && now - at(list[0]) > keepMs) list.shift();
+}
+function showStats() {
+  const now = performance.now();
+  trim(drawnTimes, 2000, now);
+  trim(received, 2000, now, (x) => x[0]);
+  const span = drawnTimes.length > 1 ? drawnTimes[drawnTimes.length - 1] - drawnTimes[0] : 0;
+  $('fps').textContent = span > 0 ? ((drawnTimes.length - 1) * 1000 / span).toFixed(1) : '0.0';
+  const bytes = received.reduce((sum, r) => sum + r[1], 0);
+  const window_ms = received.length > 1 ? Math.max(now - received[0][0], 1) : 1000;
+  $('bitrate').textContent = `${(bytes * 8 / window_ms / 1000).toFixed(1)} Mbit/s`;
+  const lat = median(latencies);
+  $('latency').textContent = Number.isFinite(lat) ? `${lat.toFixed(0)} ms` : '–';
+}
+setInterval(showStats, 250);
+
+// --- the stream ------------------------------------------------------------------------------
+const draco = new DRACOLoader();
+draco.setDecoderPath('draco/');
+draco.setWorkerLimit(2);
+
+let paused = false;
+let decoding = false;
+let pending = null;  // the newest frame waiting while one decodes: older ones are skipped
+
+function parseFrame(data) {
+  const bytes = new Uint8Array(data);
+  if (bytes.length < 8 || String.fromCharCode(...bytes.subarray(0, 4)) !== 'ZFM1') return null;
+  const length = new DataView(data).getUint32(4, true);
+  if (8 + length > bytes.length) return null;
+  const header = JSON.parse(new TextDecoder().decode(bytes.subarray(8, 8 + length)));
+  return { header, draco: data.slice(8 + length) };
+}
+
+function show(frame, geometry) {
+  mesh.geometry.dispose();
+  mesh.geometry = geometry;
+  if (!$('color').checked) geometry.computeVertexNormals();
+  const h = frame.header;
+  $('frame').textContent = h.frame;
+  $('triangles').textContent = h.triangles.toLocaleString('en');
+  $('reconstruct').textContent = `${h.reconstruct_ms.toFixed(1)} + ${h.encode_ms.toFixed(1)} ms`;
+  // Drawn at the next animation frame: latency is measured there.
+  requestAnimationFrame(() => {
+    drawnTimes.push(performance.now());
+    latencies.push(Date.now() - h.capture_time_ms);
+    if (latencies.length > 60) latencies.shift();
+    document.body.dataset.frames = String(Number(document.body.dataset.frames || 0) + 1);
+  });
+}
+
+function decodeNext() {
+  if (decoding || pending === null) return;
+  const frame = pending;
+  pending = null;
+  if (frame.draco.byteLength === 0) {  // nobody in view
+    show(frame, new THREE.BufferGeometry());
+    return decodeNext();
+  }
+  decoding = true;
+  draco.decodeDracoFile(frame.draco, (geometry) => {
+    decoding = false;
+    if (!paused) show(frame, geometry);
+    decodeNext();
+  }, null, null, THREE.SRGBColorSpace, (error) => {
+    decoding = false;
+    $('status').textContent = `a frame could not be decoded: ${error}`;
+    decodeNext();
+  });
+}
+
+const token = new URLSearchParams(location.search).get('token');
+const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/stream${token ? `?token=${encodeURIComponent(token)}` : ''}`;
+let socket;
+function connect() {
+  socket = new WebSocket(url);
+  socket.binaryType = 'arraybuffer';
+  socket.onopen = () => { $('status').textContent = 'connected'; };
+  socket.onclose = (event) => {
+    $('status').textContent = `disconnected (${event.code}${event.reason ? `: ${event.reason}` : ''}); retrying…`;
+    setTimeout(connect, 1000);
+  };
+  socket.onmessage = (event) => {
+    if (typeof event.data === 'string') {
+      const message = JSON.parse(event.data);
+      if (message.type === 'hello') {
+        cameras = message.cameras;
+        const select = $('viewpoint');
+        select.length = 1;
+        cameras.forEach((c, i) => select.add(new Option(c.name, String(i))));
+        $('status').textContent = `${message.capture}: ${cameras.length} cameras, ${message.fps} fps, level of detail ${message.lod}`;
+      }
+      return;
+    }
+    received.push([performance.now(), event.data.byteLength]);
+    if (paused) return;
+    const frame = parseFrame(event.data);
+    if (frame === null) return;
+    pending = frame;
+    decodeNext();
+  };
+}
+connect();
+
+$('play').addEventListener('click', () => {
+  paused = !paused;
+  $('play').textContent = paused ? 'play' : 'pause';
+  // The server stops sending to a paused viewer: no bandwidth for frames nobody looks at.
+  if (socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ type: paused ? 'pause' : 'resume' }));
+});
+
+renderer.setAnimationLoop(() => {
+  if (controls.enabled) controls.update();
+  renderer.render(scene, camera);
+});
