@@ -12,6 +12,8 @@ packages=(
   libcgal-dev                        # 2-D Delaunay triangulation of seams
   libnanoflann-dev                   # k-d trees: closest points for registration
   libceres-dev                       # bundle adjustment (calibration)
+  libfreenect-dev                    # live Kinect v1 capture (record, reconstruct --live); pulls libfreenect0.5, which ships fakenect's libfreenect.so
+  libfreenect-bin                    # the fakenect wrapper script: the live tests replay recordings through it
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md
