@@ -13,6 +13,7 @@ void add_eval_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
+void add_record_command(CLI::App& app);
 
 //! Progress on standard error, only when it is a terminal: "label: done/total".
 void show_progress(const std::string& label, int done, int total);

@@ -5,14 +5,19 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <type_traits>
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
+#include "cli/live_devices.h"
 #include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
+#include "zipfusion/live/live_rig.h"
 #include "zipfusion/pipeline/background_registration.h"
 #include "zipfusion/pipeline/pipeline.h"
 
@@ -35,7 +40,67 @@ struct ReconstructArgs {
   ReconstructOptions options;
   BackgroundRegistrationOptions background;
   int once_frames = 8;
+  bool live = false;
+  LiveDeviceArgs devices;
+  double seconds = 0;
 };
+
+static_assert(std::is_same_v<FrameSource, LiveFrameSource>, "live_frame_source feeds run_pipeline as it is");
+
+// Where the frame sets come from: a capture on disk, or live cameras (--live).
+struct Input {
+  std::optional<Capture> capture;
+  std::unique_ptr<LiveRig> live;
+  Rig rig;
+  FrameRange range;        // capture: the frames; live: [0, --frames) or [0, 0) without a limit
+  FrameSource source;
+  std::mutex skew_mutex;   // live: per frame set skew, written by the source thread
+  std::vector<double> skew_ms;
+};
+
+void open_input(ReconstructArgs& args, Input& in) {
+  if (!args.live) {
+    if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
+    if (!args.devices.devices.empty() || !args.devices.replay.empty() || args.seconds > 0) {
+      throw InvalidInput("--devices, --replay, --seconds: only with --live");
+    }
+    in.capture.emplace(Capture::open(args.capture));
+    in.rig = args.rig.empty() ? in.capture->rig() : rig_with_poses_from(in.capture->rig(), args.rig);
+    in.range = parse_frame_range(args.frames, in.capture->frame_count());
+    in.source = capture_source(*in.capture, in.range.begin, in.range.end);
+    return;
+  }
+  if (!args.capture.empty()) throw InvalidInput("--live: takes no CAPTURE (frames come from --devices or --replay)");
+  if (args.register_mode == "once") throw InvalidInput("--register once: needs a capture; with --live use auto, background or off");
+  if (!(args.seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = until Ctrl-C or the streams end)");
+  int max_frames = 0;
+  if (!args.frames.empty()) {
+    size_t used = 0;
+    try {
+      max_frames = std::stoi(args.frames, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != args.frames.size() || max_frames < 1) {
+      throw InvalidInput("--frames: with --live, the number of frame sets to reconstruct (a whole number >= 1), got \"" + args.frames + "\"");
+    }
+  }
+  install_stop_on_signal();
+  in.live = std::make_unique<LiveRig>(open_live_cameras(args.devices), LiveRigOptions{.cancel = &stop_requested()});
+  if (args.rig.empty()) {
+    in.rig = make_live_rig(*in.live);
+    std::cout << "reconstruct: no --rig: world poses are identity; calibrate the rig (README.md) and pass --rig\n" << std::flush;
+  } else {
+    const Rig calibration = read_rig(args.rig);
+    in.rig = make_live_rig(*in.live, &calibration, args.rig);
+  }
+  in.range = {0, max_frames};
+  in.source = live_frame_source(*in.live, {.max_frames = max_frames, .max_seconds = args.seconds, .observe = [&in](const LiveFrameSet& set) {
+    std::lock_guard lock(in.skew_mutex);
+    in.skew_ms.resize(set.index + 1, 0);
+    in.skew_ms[set.index] = set.skew_s * 1000;
+  }});
+}
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
@@ -53,9 +118,10 @@ void run_reconstruct(ReconstructArgs& args) {
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();
-  const Capture capture = Capture::open(args.capture);
-  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
-  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
+  Input in;
+  open_input(args, in);
+  const Rig& rig = in.rig;
+  const FrameRange& range = in.range;
   // auto: refine in the background unless the rig's poses are marked as trusted.
   if (args.register_mode == "auto") args.register_mode = rig.poses_trusted ? "off" : "background";
 
@@ -72,7 +138,7 @@ void run_reconstruct(ReconstructArgs& args) {
     std::vector<std::vector<Image<float>>> depth;
     const int count = std::min(args.once_frames, range.end - range.begin);
     for (int i = 0; i < count; ++i) {
-      depth.push_back(registration_depth(rig, capture.load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
+      depth.push_back(registration_depth(rig, in.capture->load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
     }
     const RegistrationResult refined = register_rig(rig, depth, args.background.registration);
     for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];
@@ -89,6 +155,7 @@ void run_reconstruct(ReconstructArgs& args) {
   // --register background: refined poses are swapped in between frames on the reconstruction
   // thread, and frame sets are offered to the worker there; neither waits for a refinement.
   PipelineOptions pipeline_options;
+  if (in.live) pipeline_options.source_policy = QueuePolicy::kDropOldest;  // the cameras do not wait
   if (background) {
     pipeline_options.before_reconstruct = [&](const FrameSet& set, FrameReconstructor& target) {
       const auto poses = background->latest_poses();
@@ -101,7 +168,7 @@ void run_reconstruct(ReconstructArgs& args) {
     };
   }
   // Decoding, reconstruction and writing overlap: each runs on its own thread.
-  const PipelineStats pipeline = run_pipeline(capture_source(capture, range.begin, range.end), reconstructor, [&](PipelineFrame& frame) {
+  const PipelineStats pipeline = run_pipeline(in.source, reconstructor, [&](PipelineFrame& frame) {
     const FrameResult& result = frame.result;
     const Clock::time_point write_start = Clock::now();
     write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh);
@@ -117,14 +184,29 @@ void run_reconstruct(ReconstructArgs& args) {
                               {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}},
                       {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
-    show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
+    if (in.live) {
+      std::lock_guard lock(in.skew_mutex);
+      if (frame.index < static_cast<int>(in.skew_ms.size())) frames.back()["skew_ms"] = in.skew_ms[frame.index];
+    }
+    if (range.end > range.begin) show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
   }, pipeline_options);
 
   nlohmann::ordered_json stats;
-  stats["capture"] = args.capture;
+  stats["capture"] = in.live ? "live" : args.capture;
+  if (in.live) {
+    nlohmann::ordered_json devices = nlohmann::json::array();
+    const std::vector<LiveCameraStats> live_stats = in.live->stats();
+    for (int c = 0; c < in.live->camera_count(); ++c) {
+      devices.push_back({{"name", rig.cameras[c].name}, {"device", in.live->camera(c).description()}, {"frames", live_stats[c].frames},
+                         {"dropped_by_camera", live_stats[c].dropped}, {"late", live_stats[c].discarded_late},
+                         {"end_reason", live_stats[c].end_reason}});
+    }
+    stats["devices"] = devices;
+    stats["dropped_frame_sets"] = pipeline.dropped;
+  }
   stats["mode"] = args.mode;
   stats["filter"] = args.filter;
-  stats["rig"] = args.rig.empty() ? (fs::path(args.capture) / "rig.json").string() : args.rig;
+  stats["rig"] = args.rig.empty() ? (in.live ? std::string("identity poses") : (fs::path(args.capture) / "rig.json").string()) : args.rig;
   stats["options"] = {{"min_depth_m", options.foreground.min_depth_m},
                       {"max_depth_m", options.foreground.max_depth_m},
                       {"crop_to_volume", options.foreground.crop_to_volume},
@@ -148,6 +230,9 @@ void run_reconstruct(ReconstructArgs& args) {
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
   std::cout << "wrote " << frames.size() << " meshes (" << args.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+  if (in.live && pipeline.dropped > 0) {
+    std::cout << "reconstruct: " << pipeline.dropped << " live frame sets were dropped because reconstruction fell behind the cameras\n";
+  }
 }
 
 }  // namespace
@@ -156,9 +241,12 @@ void add_reconstruct_command(CLI::App& app) {
   auto args = std::make_shared<ReconstructArgs>();
   ReconstructOptions& o = args->options;
   CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct one mesh per frame of a capture");
-  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  cmd->add_option("capture", args->capture, "Capture folder (with rig.json); not with --live");
+  cmd->add_flag("--live", args->live, "Reconstruct live cameras (--devices or --replay) instead of a capture; Ctrl-C stops");
+  add_live_device_options(cmd, args->devices);
+  cmd->add_option("--seconds", args->seconds, "--live: seconds to run (0 = until Ctrl-C or the streams end)")->capture_default_str();
   cmd->add_option("--out", args->out, "Output folder: NNNNNN.ply per frame and stats.json")->required();
-  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
+  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all); with --live, the number of frame sets");
   cmd->add_option("--mode", args->mode, "zipper: one connected mesh; separate: one SDC mesh per camera, concatenated")
       ->check(CLI::IsMember({"zipper", "separate"}))
       ->capture_default_str();
@@ -168,7 +256,9 @@ void add_reconstruct_command(CLI::App& app) {
       ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
       ->capture_default_str();
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
-  cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--rig", args->rig,
+                  "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json); with --live, the calibration "
+                  "(camera i's name and pose)");
   cmd->add_option("--register", args->register_mode,
                   "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on the first frames), off, "
                   "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "

@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   zipfusion::cli::add_bench_command(app);
   zipfusion::cli::add_register_command(app);
   zipfusion::cli::add_calibrate_command(app);
+  zipfusion::cli::add_record_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
