@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <system_error>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
@@ -126,6 +128,32 @@ ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::s
   ColorImage color(kFakenectWidth, kFakenectHeight);
   std::memcpy(color.data.data(), data.data(), data.size());
   return color;
+}
+
+size_t fakenect_playable_entries(const fs::path& dir, const std::vector<FakenectIndexEntry>& entries, std::string& problem) {
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const FakenectIndexEntry& e = entries[i];
+    const fs::path file = dir / e.file;
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(file, ec);
+    if (ec) {
+      problem = file.string() + ": missing";
+      return i;
+    }
+    if (e.type != 'd' && e.type != 'r') continue;
+    std::ifstream in(file, std::ios::binary);
+    char head[64] = {0};
+    in.read(head, sizeof head);
+    const std::streamsize got = in.gcount();
+    std::streamsize header = 0;
+    while (header < got && head[header] != '\n') ++header;
+    const std::uintmax_t need = static_cast<std::uintmax_t>(header + 1) + static_cast<std::uintmax_t>(kFakenectWidth) * kFakenectHeight * (e.type == 'd' ? 2 : 3);
+    if (header >= got || size < need) {
+      problem = file.string() + ": truncated: " + std::to_string(size) + " of " + std::to_string(need) + " bytes";
+      return i;
+    }
+  }
+  return entries.size();
 }
 
 void write_fakenect_file(const fs::path& dir, const FakenectIndexEntry& entry, std::span<const std::uint8_t> bytes) {

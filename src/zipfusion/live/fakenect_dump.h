@@ -59,6 +59,12 @@ std::vector<std::uint8_t> encode_fakenect_rgb(const ColorImage& color);
 RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source);
 ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source);
 
+//! How many leading entries fakenect can replay: it stops (exits the process, or reads past its
+//! buffer) at the first listed file that is missing, or, for depth and colour, shorter than its
+//! header line plus the 640×480 buffer. Returns entries.size() when every file is whole; sets
+//! `problem` to "FILE: missing" / "FILE: truncated: N of M bytes" for the first bad one.
+size_t fakenect_playable_entries(const std::filesystem::path& dir, const std::vector<FakenectIndexEntry>& entries, std::string& problem);
+
 //! Writes one frame file atomically, and INDEX.txt (atomically) listing `entries` in order.
 void write_fakenect_file(const std::filesystem::path& dir, const FakenectIndexEntry& entry, std::span<const std::uint8_t> bytes);
 void write_fakenect_index(const std::filesystem::path& dir, const std::vector<FakenectIndexEntry>& entries);

@@ -205,6 +205,19 @@ TEST_F(FakenectDump, ATruncatedLastFileEndsTheStreamAfterTheGoodFrames) {
   EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
 }
 
+TEST_F(FakenectDump, PlayableEntriesEndAtTheFirstMissingOrShortFile) {
+  const std::vector<FakenectIndexEntry> index = write_dump(3);
+  std::string problem;
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 6u);
+  EXPECT_EQ(problem, "");
+  fs::resize_file(dir_ / index[5].file, 614400);  // header + 614400 would be whole
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 5u);
+  EXPECT_EQ(problem, (dir_ / index[5].file).string() + ": truncated: 614400 of 614417 bytes");
+  fs::remove(dir_ / index[2].file);
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 2u);
+  EXPECT_EQ(problem, (dir_ / index[2].file).string() + ": missing");
+}
+
 TEST_F(FakenectDump, ColourOlderThanItsAgeLimitIsNotPaired) {
   // Depth 0.1 s after the only colour: no colour for it.
   const FakenectIndexEntry color{.type = 'r', .time_s = 10.0, .timestamp = 1, .file = fakenect_file_name('r', 10.0, 1)};

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <mutex>
@@ -15,6 +16,7 @@
 #include <thread>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/live/fakenect_dump.h"
 #include "zipfusion/live/kinect_disparity.h"
 
 namespace zipfusion {
@@ -90,6 +92,10 @@ struct Context {
   std::vector<std::unique_ptr<Slot>> slots;
   std::thread events;
   std::atomic<bool> quit{false};
+  // fakenect replays one INDEX.txt line per event call and exits the process at a missing file:
+  // the calls it can take, and why no more (-1: no limit).
+  long event_calls_left = -1;
+  std::string event_limit_reason;
 
   ~Context() {
     quit = true;
@@ -118,6 +124,11 @@ struct Context {
         any_running = any_running || !slot->ended;
       }
       if (!any_running) break;
+      if (event_calls_left == 0) {
+        for (auto& slot : slots) end(*slot, event_limit_reason);
+        break;
+      }
+      if (event_calls_left > 0) --event_calls_left;
       timeval timeout{0, 20000};
       const int status = freenect_process_events_timeout(context, &timeout);
       if (status < 0 && status != kLibusbErrorInterrupted) {
@@ -332,6 +343,20 @@ CameraModel model_of(Slot& slot, KinectDepthFormat format) {
   return model;
 }
 
+// Under fakenect (FAKENECT_PATH set): a dump fakenect would die on part-way (a listed file
+// missing or short, as a crash of fakenect-record leaves it) is replayed up to that file only, so
+// the stream ends cleanly there.
+void limit_fakenect_replay(Context& context) {
+  const char* path = std::getenv("FAKENECT_PATH");
+  if (!path || !*path) return;
+  const std::vector<FakenectIndexEntry> entries = read_fakenect_index(path);  // throws IoError naming INDEX.txt
+  std::string problem;
+  const size_t playable = fakenect_playable_entries(path, entries, problem);
+  if (playable == entries.size()) return;
+  context.event_calls_left = static_cast<long>(playable);
+  context.event_limit_reason = "the fakenect recording ends at INDEX.txt line " + std::to_string(playable + 1) + " (" + problem + ")";
+}
+
 }  // namespace
 
 void KinectOptions::validate() const {
@@ -359,6 +384,7 @@ std::vector<std::unique_ptr<LiveCamera>> open_kinect_cameras(const std::string& 
   }
   auto context = std::make_shared<Context>();
   context->options = options;
+  if (!registers) limit_fakenect_replay(*context);
   context->context = init_context();
   const std::vector<KinectDevice> chosen = select_devices(selection, devices_of(context->context));
   const freenect_depth_format depth_format = format == KinectDepthFormat::kRaw          ? FREENECT_DEPTH_11BIT
