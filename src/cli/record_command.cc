@@ -82,6 +82,7 @@ void run_record(RecordArgs& args) {
     show_progress("record", set.index + 1, options.max_frames > 0 ? options.max_frames : set.index + 2);
   };
   const RecordResult result = record_capture(live, rig, args.out, options);
+  if (result.frame_sets > 0) show_progress("record", result.frame_sets, result.frame_sets);  // ends the progress line
   ends.report(live, result.frames_written);
 
   std::printf("recorded %d frame sets in %.2f s to %s:", result.frame_sets, result.duration_s, args.out.c_str());
