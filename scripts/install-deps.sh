@@ -14,6 +14,8 @@ packages=(
   libceres-dev                       # bundle adjustment (calibration)
   libdraco-dev                       # mesh compression for the live stream
   libboost-dev                       # Boost.Beast: HTTP and WebSocket server of the live stream
+  libfreenect-dev                    # live Kinect v1 capture (record, reconstruct --live); pulls libfreenect0.5, which ships fakenect's libfreenect.so
+  libfreenect-bin                    # the fakenect wrapper script: the live tests replay recordings through it
   libgtest-dev libgmock-dev          # tests
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md

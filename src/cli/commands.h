@@ -14,6 +14,7 @@ void add_bench_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
+void add_record_command(CLI::App& app);
 
 //! Progress on standard error, only when it is a terminal: "label: done/total".
 void show_progress(const std::string& label, int done, int total);

@@ -1,4 +1,5 @@
-// zipfusion reconstruct: one mesh per frame of a capture, with per-stage timings in stats.json.
+// zipfusion reconstruct: one mesh per frame of a capture (or of live cameras, --live), with
+// per-stage timings in stats.json.
 
 #include <algorithm>
 #include <chrono>
@@ -8,12 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
-#include "cli/frame_range.h"
+#include "cli/frame_input.h"
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
-#include "zipfusion/pipeline/background_registration.h"
 #include "zipfusion/pipeline/pipeline.h"
 
 namespace zipfusion::cli {
@@ -23,9 +23,8 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct ReconstructArgs {
-  std::string capture;
+  InputArgs input;
   std::string out;
-  std::string frames;
   std::string format = "ply";
   ReconstructionArgs reconstruction;
 };
@@ -39,10 +38,12 @@ double median_of(std::vector<double> values) {
 }
 
 void run_reconstruct(ReconstructArgs& args) {
-  const Capture capture = Capture::open(args.capture);
-  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
-  Reconstruction reconstruction(capture, args.reconstruction, range);
-  FrameReconstructor& reconstructor = reconstruction.reconstructor();
+  if (!args.input.live && args.input.seconds > 0) throw InvalidInput("--seconds: only with --live");
+  ReconstructionArgs& r = args.reconstruction;
+  Input in;
+  open_input(args.input, r.rig, r.register_mode, in);
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+  const FrameRange& range = in.range;
 
   const fs::path out_dir = args.out;
   std::error_code ec;
@@ -52,8 +53,10 @@ void run_reconstruct(ReconstructArgs& args) {
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
   const std::string extension = "." + args.format;
+  PipelineOptions pipeline_options = reconstruction.pipeline_options();
+  if (in.live) pipeline_options.source_policy = QueuePolicy::kDropOldest;  // the cameras do not wait
   // Decoding, reconstruction and writing overlap: each runs on its own thread.
-  const PipelineStats pipeline = run_pipeline(capture_source(capture, range.begin, range.end), reconstructor, [&](PipelineFrame& frame) {
+  const PipelineStats pipeline = run_pipeline(in.source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
     const FrameResult& result = frame.result;
     const Clock::time_point write_start = Clock::now();
     write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh);
@@ -69,15 +72,26 @@ void run_reconstruct(ReconstructArgs& args) {
                               {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}},
                       {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added}}}});
-    show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
-  }, reconstruction.pipeline_options());
+    if (in.live && in.skew_of(frame.index) >= 0) frames.back()["skew_ms"] = in.skew_of(frame.index);
+    if (range.end > range.begin) show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
+  }, pipeline_options);
 
-  const ReconstructionArgs& r = args.reconstruction;
   nlohmann::ordered_json stats;
-  stats["capture"] = args.capture;
+  stats["capture"] = in.live ? "live" : args.input.capture;
+  if (in.live) {
+    nlohmann::ordered_json devices = nlohmann::json::array();
+    const std::vector<LiveCameraStats> live_stats = in.live->stats();
+    for (int c = 0; c < in.live->camera_count(); ++c) {
+      devices.push_back({{"name", in.rig.cameras[c].name}, {"device", in.live->camera(c).description()}, {"frames", live_stats[c].frames},
+                         {"dropped_by_camera", live_stats[c].dropped}, {"late", live_stats[c].discarded_late},
+                         {"end_reason", live_stats[c].end_reason}});
+    }
+    stats["devices"] = devices;
+    stats["dropped_frame_sets"] = pipeline.dropped;
+  }
   stats["mode"] = r.mode;
   stats["filter"] = r.filter;
-  stats["rig"] = r.rig.empty() ? (fs::path(args.capture) / "rig.json").string() : r.rig;
+  stats["rig"] = r.rig.empty() ? (in.live ? std::string("identity poses") : (fs::path(args.input.capture) / "rig.json").string()) : r.rig;
   stats["options"] = options_json(r.options);
   stats["register"] = reconstruction.register_mode();
   stats["pose_updates"] = reconstruction.pose_updates();
@@ -87,16 +101,18 @@ void run_reconstruct(ReconstructArgs& args) {
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+  if (in.live && pipeline.dropped > 0) {
+    std::cout << "reconstruct: " << pipeline.dropped << " live frame sets were dropped because reconstruction fell behind the cameras\n";
+  }
 }
 
 }  // namespace
 
 void add_reconstruct_command(CLI::App& app) {
   auto args = std::make_shared<ReconstructArgs>();
-  CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct one mesh per frame of a capture");
-  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
+  CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct one mesh per frame of a capture (or of live cameras)");
+  add_input_options(cmd, args->input);
   cmd->add_option("--out", args->out, "Output folder: NNNNNN.ply per frame and stats.json")->required();
-  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
   cmd->add_option("--format", args->format, "Mesh file format")->check(CLI::IsMember({"ply", "obj"}))->capture_default_str();
   add_reconstruction_options(cmd, args->reconstruction);
   cmd->callback([args] { run_reconstruct(*args); });

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 
-#include "cli/rig_poses.h"
 
 namespace zipfusion::cli {
 
@@ -69,7 +68,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"threads", options.num_threads}};
 }
 
-Reconstruction::Reconstruction(const Capture& capture, ReconstructionArgs& args, const FrameRange& range) {
+Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range) : rig_(rig) {
   ReconstructOptions& options = args.options;
   options.bilateral = args.filter != "none";
   options.filter.separable = args.filter == "bilateral-separable";
@@ -77,17 +76,17 @@ Reconstruction::Reconstruction(const Capture& capture, ReconstructionArgs& args,
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();
-  rig_ = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   register_mode_ = args.register_mode == "auto" ? (rig_.poses_trusted ? "off" : "background") : args.register_mode;
 
   // --register once: refine on frames spread over the range, then keep those poses.
   Rig start_rig = rig_;
   if (register_mode_ == "once") {
+    if (capture == nullptr) throw InvalidInput("--register once: needs a capture");
     args.background.registration.validate();
     std::vector<std::vector<Image<float>>> depth;
     const int count = std::min(args.once_frames, range.end - range.begin);
     for (int i = 0; i < count; ++i) {
-      depth.push_back(registration_depth(rig_, capture.load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
+      depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
     }
     const RegistrationResult refined = register_rig(rig_, depth, args.background.registration);
     for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];

@@ -18,7 +18,7 @@ namespace zipfusion::cli {
 struct ReconstructionArgs {
   std::string mode = "zipper";
   std::string filter = "bilateral";
-  std::string rig;
+  std::string rig;  // --rig: the capture's poses from another rig.json, or the live cameras' calibration
   std::string register_mode = "auto";
   bool no_volume_crop = false;
   ReconstructOptions options;
@@ -32,12 +32,13 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args);
 //! The options as JSON (stats.json, the stream's description).
 nlohmann::ordered_json options_json(const ReconstructOptions& options);
 
-//! A capture's reconstruction. With --register auto the poses are refined in the background
-//! unless the rig marks them as trusted; with once, they are refined before the first frame.
+//! The reconstruction of frames seen by `rig`. With --register auto the poses are refined in the
+//! background unless the rig marks them as trusted; with once, they are refined on frames of
+//! `capture` (required then) before the first frame.
 class Reconstruction {
  public:
-  //! Throws InvalidInput for bad options or a bad --rig file.
-  Reconstruction(const Capture& capture, ReconstructionArgs& args, const FrameRange& range);
+  //! Throws InvalidInput for bad options.
+  Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range);
 
   FrameReconstructor& reconstructor() { return *reconstructor_; }
   const Rig& rig() const { return rig_; }  // the poses reconstruction starts from

@@ -21,9 +21,11 @@ TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("serving http://127.0.0.1:"), std::string::npos) << r.out;
   std::smatch served;
-  ASSERT_TRUE(std::regex_search(r.out, served, std::regex("served (\\d+) frame sets"))) << r.out;
-  // 2 s at 30 fps, looping over 6 frames: 60 frame sets handed over (none when paced wrongly).
-  EXPECT_EQ(std::stoi(served[1]), 60);
+  ASSERT_TRUE(std::regex_search(r.out, served, std::regex("served (\\d+) frame sets \\((\\d+) dropped"))) << r.out;
+  // 2 s at 30 fps, looping over 6 frames: 60 frame sets handed over, streamed or (on a machine
+  // too busy to keep up, as live) dropped.
+  EXPECT_EQ(std::stoi(served[1]) + std::stoi(served[2]), 60) << r.out;
+  EXPECT_GE(std::stoi(served[1]), 30) << r.out;
   // Without --loop the stream ends with the capture.
   const CommandResult once = run("serve " + capture + " --port 0");
   ASSERT_EQ(once.exit_code, 0) << once.err;

@@ -17,7 +17,7 @@
 #include <thread>
 
 #include "cli/commands.h"
-#include "cli/frame_range.h"
+#include "cli/frame_input.h"
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/draco_codec.h"
@@ -30,18 +30,13 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct ServeArgs {
-  std::string capture;
-  std::string frames;
+  InputArgs input;
   bool loop = false;
-  double seconds = 0;  // 0: until interrupted (or the end, without --loop)
   StreamServerOptions server;
   std::string web;
   DracoOptions draco;
   ReconstructionArgs reconstruction;
 };
-
-std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int) { g_stop = true; }
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
@@ -75,7 +70,7 @@ std::string hello_json(const Rig& rig, const ServeArgs& args, const Quantization
   }
   nlohmann::ordered_json hello = {{"type", "hello"},
                                   {"format", "zipfusion.stream/1"},
-                                  {"capture", fs::path(args.capture).filename().string()},
+                                  {"capture", args.input.live ? std::string("live") : fs::path(args.input.capture).filename().string()},
                                   {"fps", rig.fps},
                                   {"lod", args.reconstruction.options.depth_level},
                                   {"position_bits", args.draco.position_bits},
@@ -97,7 +92,7 @@ class PacedSource {
       : capture_(capture), range_(range), loop_(loop), period_(1.0 / capture.rig().fps), seconds_(seconds) {}
 
   std::optional<FrameSet> next(double& decode_ms) {
-    if (g_stop) return std::nullopt;
+    if (stop_requested()) return std::nullopt;
     const int count = range_.end - range_.begin;
     if (!loop_ && sequence_ >= count) return std::nullopt;
     const int index = range_.begin + static_cast<int>(sequence_ % count);
@@ -134,23 +129,36 @@ void run_serve(ServeArgs& args) {
   args.draco.validate();
   args.server.web_root = viewer_folder(args.web);
   args.server.validate();
-  const Capture capture = Capture::open(args.capture);
-  const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
-  Reconstruction reconstruction(capture, args.reconstruction, range);
-  // One quantisation grid for the whole stream: the capture volume (positions outside it are
-  // clamped by the grid's growth on the first frame that has them).
-  const QuantizationBox box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);
-  StreamServer server(args.server, hello_json(reconstruction.rig(), args, box));
+  if (args.input.live && args.loop) throw InvalidInput("--loop: only for a capture");
+  ReconstructionArgs& r = args.reconstruction;
+  Input in;
+  open_input(args.input, r.rig, r.register_mode, in);
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+  // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
+  // grows the grid of that frame only).
+  const QuantizationBox volume_box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);
+  StreamServer server(args.server, hello_json(reconstruction.rig(), args, volume_box));
 
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  install_stop_on_signal();
   std::string url = "http://" + args.server.bind_address + ":" + std::to_string(server.port()) + "/";
   if (!args.server.token.empty()) url += "?token=" + args.server.token;
-  std::cout << "serving " << url << " (" << capture.camera_count() << " cameras, " << capture.rig().fps << " fps, lod "
-            << args.reconstruction.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;
+  std::cout << "serving " << url << " (" << in.rig.cameras.size() << " cameras, " << in.rig.fps << " fps, lod "
+            << r.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;
 
-  PacedSource paced(capture, range, args.loop, args.seconds);
-  const FrameSource source = [&](double& decode_ms) { return paced.next(decode_ms); };
+  // A capture plays at its frame rate; live cameras deliver at theirs. Either way a frame set's
+  // capture time is when it is handed over.
+  std::unique_ptr<PacedSource> paced;
+  FrameSource source;
+  if (in.capture) {
+    paced = std::make_unique<PacedSource>(*in.capture, in.range, args.loop, args.input.seconds);
+    source = [&](double& decode_ms) { return paced->next(decode_ms); };
+  } else {
+    source = [&](double& decode_ms) {
+      std::optional<FrameSet> set = in.source(decode_ms);
+      if (set) set->capture_time_ms = epoch_ms();
+      return set;
+    };
+  }
   PipelineOptions pipeline_options = reconstruction.pipeline_options();
   pipeline_options.source_policy = QueuePolicy::kDropOldest;  // live: never fall behind
   pipeline_options.queue_depth = 1;
@@ -159,7 +167,7 @@ void run_serve(ServeArgs& args) {
   long frames_since = 0, bytes_since = 0;
   const PipelineStats stats = run_pipeline(source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
     const Clock::time_point t = Clock::now();
-    const std::string draco = encode_draco(frame.result.mesh, box, args.draco);
+    const std::string draco = encode_draco(frame.result.mesh, quantization_box(frame.result.mesh, reconstruction.rig().volume), args.draco);
     const double encode_ms = ms_since(t);
     const nlohmann::ordered_json header = {{"type", "frame"},
                                            {"frame", frame.index},
@@ -196,11 +204,8 @@ void add_serve_command(CLI::App& app) {
   auto args = std::make_shared<ServeArgs>();
   args->reconstruction.options.depth_level = 1;  // a stream wants a quarter of the triangles (issue 8's budget)
   CLI::App* cmd = app.add_subcommand("serve", "Stream the reconstruction live to a viewer in the browser");
-  cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
-  cmd->add_option("--frames", args->frames, "Frames A:B (A included, B excluded; default all)");
-  cmd->add_flag("--loop", args->loop, "Play the frames again and again (decoded once, kept in memory)");
-  cmd->add_option("--seconds", args->seconds, "Stop after this many seconds of stream (0: at the end, or never with --loop)")
-      ->check(CLI::NonNegativeNumber);
+  add_input_options(cmd, args->input);
+  cmd->add_flag("--loop", args->loop, "Play the capture's frames again and again (decoded once, kept in memory)");
   cmd->add_option("--port", args->server.port, "HTTP port for the viewer and the stream (0: any free port)")->capture_default_str();
   cmd->add_option("--bind", args->server.bind_address, "Address to listen on (127.0.0.1: this machine only; 0.0.0.0: every network)")
       ->capture_default_str();

@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/synth/calib_targets.h"
+#include "zipfusion/synth/fakenect_scene.h"
 #include "zipfusion/synth/synth.h"
 
 namespace zipfusion::cli {
@@ -20,6 +21,8 @@ struct SynthArgs {
   std::string noise = "kinect";
   SynthOptions options;
   bool wand = false, checkerboard = false;
+  std::string fakenect;
+  FakenectSceneOptions fakenect_options;
   WandOptions wand_options;
   int views = 20;
   std::string board = "9x6";
@@ -64,7 +67,17 @@ void run_synth(SynthArgs& args) {
   if (args.no_quantization) options.noise.disparity_quantization = false;
   if (args.no_floor) options.floor = false;
 
-  if (args.wand && args.checkerboard) throw InvalidInput("--wand, --checkerboard: choose one");
+  if (args.wand + args.checkerboard + !args.fakenect.empty() > 1) throw InvalidInput("--wand, --checkerboard, --fakenect: choose one");
+  if (!args.fakenect.empty()) {
+    if (!args.out.empty()) throw InvalidInput("--out, --fakenect: choose one (--fakenect DIR is where the dump goes)");
+    const FakenectSceneResult result =
+        write_fakenect_scene(args.fakenect, options, args.fakenect_options, [](int done, int total) { show_progress("synth", done, total); });
+    std::cout << "wrote " << args.fakenect << ": fakenect dump of camera " << args.fakenect_options.camera << ", " << result.frames_listed
+              << " of " << options.frames << " frames in INDEX.txt; the truth (depth before raw encoding, colour, timestamps) in "
+              << args.fakenect << "/truth\n";
+    return;
+  }
+  if (args.out.empty()) throw InvalidInput("--out: required (or --fakenect DIR)");
   if (args.checkerboard) {
     CheckerboardOptions board{.views = args.views, .square_m = args.square_m, .seed = options.seed};
     char tail = 0;
@@ -103,7 +116,14 @@ void add_synth_command(CLI::App& app) {
   auto args = std::make_shared<SynthArgs>();
   SynthOptions& o = args->options;
   CLI::App* cmd = app.add_subcommand("synth", "Write a synthetic multi-Kinect capture of a moving person, with ground truth");
-  cmd->add_option("--out", args->out, "Output capture folder (must not exist)")->required();
+  cmd->add_option("--out", args->out, "Output capture folder (must not exist)");
+  cmd->add_option("--fakenect", args->fakenect,
+                  "Write a fakenect dump (INDEX.txt, raw 11-bit depth PGM, RGB PPM, as fakenect-record writes them) of one camera of "
+                  "the scene instead, with the truth in DIR/truth; replay it with: fakenect DIR zipfusion record --devices all ...");
+  cmd->add_option("--camera", args->fakenect_options.camera, "--fakenect: which camera of the ring is recorded")->capture_default_str();
+  cmd->add_option("--truncate", args->fakenect_options.truncate_at,
+                  "--fakenect: INDEX.txt ends after frame N's colour image, as a device unplugged mid-recording leaves it (-1 = complete)")
+      ->capture_default_str();
   cmd->add_option("--frames", o.frames, "Frames to render")->capture_default_str();
   cmd->add_flag("--wand", args->wand,
                 "Write a calibration capture instead: a red and a green LED waved through the volume in a dim room with "

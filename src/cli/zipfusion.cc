@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   zipfusion::cli::add_register_command(app);
   zipfusion::cli::add_calibrate_command(app);
   zipfusion::cli::add_serve_command(app);
+  zipfusion::cli::add_record_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

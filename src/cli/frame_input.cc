@@ -1,0 +1,67 @@
+#include "cli/frame_input.h"
+
+#include <iostream>
+#include <type_traits>
+
+#include "cli/rig_poses.h"
+
+namespace zipfusion::cli {
+
+static_assert(std::is_same_v<FrameSource, LiveFrameSource>, "live_frame_source feeds run_pipeline as it is");
+
+void add_input_options(CLI::App* cmd, InputArgs& args) {
+  cmd->add_option("capture", args.capture, "Capture folder (with rig.json); not with --live");
+  cmd->add_option("--frames", args.frames, "Frames A:B (A included, B excluded; default all); with --live, the number of frame sets");
+  cmd->add_flag("--live", args.live, "Live cameras (--devices or --replay) instead of a capture; Ctrl-C stops");
+  add_live_device_options(cmd, args.devices);
+  cmd->add_option("--seconds", args.seconds, "Seconds to run (0 = until Ctrl-C or the end of the frames)")->capture_default_str();
+}
+
+double Input::skew_of(int index) {
+  std::lock_guard lock(skew_mutex);
+  return index >= 0 && index < static_cast<int>(skew_ms.size()) ? skew_ms[index] : -1;
+}
+
+void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, Input& in) {
+  if (!(args.seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = until Ctrl-C or the end of the frames)");
+  if (!args.live) {
+    if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
+    if (!args.devices.devices.empty() || !args.devices.replay.empty()) throw InvalidInput("--devices, --replay: only with --live");
+    in.capture.emplace(Capture::open(args.capture));
+    in.rig = rig_path.empty() ? in.capture->rig() : rig_with_poses_from(in.capture->rig(), rig_path);
+    in.range = parse_frame_range(args.frames, in.capture->frame_count());
+    in.source = capture_source(*in.capture, in.range.begin, in.range.end);
+    return;
+  }
+  if (!args.capture.empty()) throw InvalidInput("--live: takes no CAPTURE (frames come from --devices or --replay)");
+  if (register_mode == "once") throw InvalidInput("--register once: needs a capture; with --live use auto, background or off");
+  int max_frames = 0;
+  if (!args.frames.empty()) {
+    size_t used = 0;
+    try {
+      max_frames = std::stoi(args.frames, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != args.frames.size() || max_frames < 1) {
+      throw InvalidInput("--frames: with --live, the number of frame sets (a whole number >= 1), got \"" + args.frames + "\"");
+    }
+  }
+  install_stop_on_signal();
+  in.live = std::make_unique<LiveRig>(open_live_cameras(args.devices), LiveRigOptions{.cancel = &stop_requested()});
+  if (rig_path.empty()) {
+    in.rig = make_live_rig(*in.live);
+    std::cout << "no --rig: world poses are identity; calibrate the rig (README.md) and pass --rig\n" << std::flush;
+  } else {
+    const Rig calibration = read_rig(rig_path);
+    in.rig = make_live_rig(*in.live, &calibration, rig_path);
+  }
+  in.range = {0, max_frames};
+  in.source = live_frame_source(*in.live, {.max_frames = max_frames, .max_seconds = args.seconds, .observe = [&in](const LiveFrameSet& set) {
+    std::lock_guard lock(in.skew_mutex);
+    in.skew_ms.resize(set.index + 1, 0);
+    in.skew_ms[set.index] = set.skew_s * 1000;
+  }});
+}
+
+}  // namespace zipfusion::cli

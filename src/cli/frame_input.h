@@ -1,0 +1,49 @@
+#pragma once
+// Where `reconstruct` and `serve` take frame sets from: a capture on disk, or live cameras
+// (--live: Kinect v1 devices or fakenect dumps replayed), with the rig for them.
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cli/frame_range.h"
+#include "cli/live_devices.h"
+#include "zipfusion/io/capture.h"
+#include "zipfusion/live/live_rig.h"
+#include "zipfusion/pipeline/pipeline.h"
+
+namespace zipfusion::cli {
+
+struct InputArgs {
+  std::string capture;
+  std::string frames;
+  bool live = false;
+  LiveDeviceArgs devices;
+  double seconds = 0;
+};
+
+//! CAPTURE (positional, not with --live), --frames, --live, the device options, --seconds.
+void add_input_options(CLI::App* cmd, InputArgs& args);
+
+struct Input {
+  std::optional<Capture> capture;
+  std::unique_ptr<LiveRig> live;
+  Rig rig;
+  FrameRange range;       // capture: the frames; live: [0, --frames) or [0, 0) without a limit
+  FrameSource source;     // capture: every frame as fast as it decodes; live: as the cameras deliver
+  std::mutex skew_mutex;  // live: per frame set skew, written by the source thread
+  std::vector<double> skew_ms;
+
+  //! The frame set's skew between the cameras (live), or a negative value.
+  double skew_of(int index);
+};
+
+//! Opens the capture or the cameras. `rig_path` (--rig): poses for the capture, or the
+//! calibration of live cameras; `register_mode` is checked against --live. Throws InvalidInput
+//! naming the option.
+void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, Input& in);
+
+}  // namespace zipfusion::cli

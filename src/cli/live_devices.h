@@ -1,0 +1,89 @@
+#pragma once
+// Live cameras for the CLI (record, reconstruct --live): --devices / --replay / --depth-format,
+// and Ctrl-C as a clean stop.
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/live/kinect_camera.h"
+#include "zipfusion/live/live_camera.h"
+#include "zipfusion/live/replay_camera.h"
+
+namespace zipfusion::cli {
+
+struct LiveDeviceArgs {
+  std::string devices;               // --devices all|INDEX,...|SERIAL,...
+  std::string replay;                // --replay DUMP[,DUMP...]
+  std::string depth_format = "auto";
+  KinectOptions kinect;
+};
+
+inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
+  cmd->add_option("--devices", args.devices,
+                  "Kinect v1 devices: all, or comma-separated indices (0,2) or serials, in the rig's camera order (cam0, cam1, ...)");
+  cmd->add_option("--replay", args.replay,
+                  "Instead of devices: fakenect dumps (fakenect-record folders), one per camera, comma-separated, replayed as fast as "
+                  "they can be read (their recording times group the frames)");
+  cmd->add_option("--depth-format", args.depth_format,
+                  "Kinect depth: auto (mm where libfreenect registers depth, raw under fakenect), mm, registered (on the colour "
+                  "camera's grid) or raw (11-bit disparity, converted by the Kinect v1 model)")
+      ->check(CLI::IsMember({"auto", "mm", "registered", "raw"}))
+      ->capture_default_str();
+  cmd->add_option("--stall-timeout", args.kinect.stall_timeout_s, "A Kinect without a depth frame this long has been unplugged, seconds")
+      ->capture_default_str();
+}
+
+inline std::vector<std::string> split_commas(const std::string& text) {
+  std::vector<std::string> parts;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(',', start), text.size());
+    parts.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  return parts;
+}
+
+//! The selected cameras; throws InvalidInput naming the option.
+inline std::vector<std::unique_ptr<LiveCamera>> open_live_cameras(LiveDeviceArgs& args) {
+  if (args.devices.empty() == args.replay.empty()) throw InvalidInput("--devices, --replay: give exactly one (the cameras to read)");
+  std::vector<std::unique_ptr<LiveCamera>> cameras;
+  if (!args.replay.empty()) {
+    int c = 0;
+    for (const std::string& dir : split_commas(args.replay)) {
+      if (dir.empty()) throw InvalidInput("--replay: \"" + args.replay + "\": an empty entry");
+      cameras.push_back(std::make_unique<ReplayCamera>(dir, "cam" + std::to_string(c++)));
+    }
+    return cameras;
+  }
+  const std::string& f = args.depth_format;
+  args.kinect.depth_format = f == "mm"           ? KinectDepthFormat::kMillimetres
+                             : f == "registered" ? KinectDepthFormat::kRegistered
+                             : f == "raw"        ? KinectDepthFormat::kRaw
+                                                 : KinectDepthFormat::kAuto;
+  return open_kinect_cameras(args.devices, args.kinect);
+}
+
+//! Set by SIGINT/SIGTERM while installed; a second Ctrl-C ends the process as usual.
+inline std::atomic<bool>& stop_requested() {
+  static std::atomic<bool> flag{false};
+  return flag;
+}
+
+inline void install_stop_on_signal() {
+  static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler stores to it");
+  stop_requested().store(false);  // also constructs the flag before any signal can arrive
+  struct sigaction action {};
+  action.sa_handler = [](int) { stop_requested().store(true); };
+  action.sa_flags = SA_RESETHAND;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+}  // namespace zipfusion::cli

@@ -1,0 +1,244 @@
+#include "zipfusion/live/fakenect_dump.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <random>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
+#include "zipfusion/live/kinect_disparity.h"
+#include "zipfusion/live/replay_camera.h"
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+RawDepthImage ramp_raw(int seed) {
+  RawDepthImage raw(kFakenectWidth, kFakenectHeight);
+  for (int v = 0; v < raw.height; ++v) {
+    for (int u = 0; u < raw.width; ++u) raw(u, v) = (u + v) % 11 == 0 ? kKinectRawNoValue : static_cast<std::uint16_t>(400 + (u + 2 * v + seed) % 600);
+  }
+  return raw;
+}
+
+ColorImage pattern_rgb(int seed) {
+  ColorImage c(kFakenectWidth, kFakenectHeight);
+  for (int v = 0; v < c.height; ++v) {
+    for (int u = 0; u < c.width; ++u) {
+      c(u, v) = {static_cast<unsigned char>(u + seed), static_cast<unsigned char>(v * 3), static_cast<unsigned char>(u ^ v)};
+    }
+  }
+  return c;
+}
+
+class FakenectDump : public ::testing::Test {
+ protected:
+  fs::path dir_ = fs::temp_directory_path() / ("zf_fakenect_dump_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+  void SetUp() override {
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // A dump of `frames` frames as synth --fakenect lays it out: colour, then depth 1 ms later.
+  std::vector<FakenectIndexEntry> write_dump(int frames) {
+    std::vector<FakenectIndexEntry> index;
+    for (int i = 0; i < frames; ++i) {
+      const double t = 1700000000.0 + i / 30.0;
+      FakenectIndexEntry color{.type = 'r', .time_s = t, .timestamp = static_cast<std::uint32_t>(940000 + 2000000 * i), .file = ""};
+      FakenectIndexEntry depth{.type = 'd', .time_s = t + 0.001, .timestamp = static_cast<std::uint32_t>(1000000 + 2000000 * i), .file = ""};
+      color.file = fakenect_file_name('r', color.time_s, color.timestamp);
+      depth.file = fakenect_file_name('d', depth.time_s, depth.timestamp);
+      write_fakenect_file(dir_, color, encode_fakenect_rgb(pattern_rgb(i)));
+      write_fakenect_file(dir_, depth, encode_fakenect_depth(ramp_raw(i)));
+      index.push_back(color);
+      index.push_back(depth);
+    }
+    write_fakenect_index(dir_, index);
+    return index;
+  }
+};
+
+TEST(FakenectFormat, FileNamesAreFakenectRecords) {
+  EXPECT_EQ(fakenect_file_name('d', 1700000000.033333, 2000000), "d-1700000000.033333-2000000.pgm");
+  EXPECT_EQ(fakenect_file_name('r', 12.5, 7), "r-12.500000-7.ppm");
+}
+
+TEST(FakenectFormat, IndexParsesTypeTimeAndTimestamp) {
+  const std::vector<FakenectIndexEntry> entries =
+      parse_fakenect_index("r-1294185715.129114-3565587864.ppm\r\nd-1294185715.130000-3565601952.pgm\n\na-1294185715.131-3565601952.dump\n"
+                           "d-5.25-77-extra.pgm\n",
+                           "INDEX.txt");
+  ASSERT_EQ(entries.size(), 4u);
+  EXPECT_EQ(entries[0].type, 'r');
+  EXPECT_DOUBLE_EQ(entries[0].time_s, 1294185715.129114);
+  EXPECT_EQ(entries[0].timestamp, 3565587864u);
+  EXPECT_EQ(entries[0].file, "r-1294185715.129114-3565587864.ppm");
+  EXPECT_EQ(entries[1].type, 'd');
+  EXPECT_EQ(entries[1].timestamp, 3565601952u);
+  EXPECT_EQ(entries[2].type, 'a');
+  EXPECT_DOUBLE_EQ(entries[3].time_s, 5.25);  // fakenect's own pattern "%c-%lf-%u-%*s"
+  EXPECT_EQ(entries[3].timestamp, 77u);
+}
+
+TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
+  for (const char* bad : {"d-1.0-12.pgm\nnot-a-name\n", "d-1.0-12.pgm\nd-x-12.pgm\n", "d-1.0-12.pgm\nd-1.0-.pgm\n",
+                          "d-1.0-12.pgm\nd-1.0-99999999999.pgm\n", "d-1.0-12.pgm\nd-1.0-12/../x.pgm\n"}) {
+    try {
+      parse_fakenect_index(bad, "dump/INDEX.txt");
+      ADD_FAILURE() << bad;
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find("dump/INDEX.txt: line 2:"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(FakenectFormat, DepthAndColourRoundTripBitExactly) {
+  const RawDepthImage raw = ramp_raw(3);
+  const std::vector<std::uint8_t> bytes = encode_fakenect_depth(raw);
+  const std::string header = "P5 640 480 65535\n";
+  ASSERT_EQ(bytes.size(), header.size() + 640u * 480 * 2);
+  EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + header.size()), header);
+  // Little-endian, as libfreenect's buffer on the host: pixel 1 holds 400 + (1 + 3) % 600 = 404.
+  EXPECT_EQ(bytes[header.size() + 2], 404 & 0xff);
+  EXPECT_EQ(bytes[header.size() + 3], 404 >> 8);
+  EXPECT_EQ(decode_fakenect_depth(bytes, "d.pgm"), raw);
+
+  const ColorImage rgb = pattern_rgb(5);
+  const std::vector<std::uint8_t> rgb_bytes = encode_fakenect_rgb(rgb);
+  EXPECT_EQ(std::string(rgb_bytes.begin(), rgb_bytes.begin() + 15), "P6 640 480 255\n");
+  EXPECT_EQ(rgb_bytes.size(), 15u + 640 * 480 * 3);
+  EXPECT_EQ(decode_fakenect_rgb(rgb_bytes, "r.ppm"), rgb);
+}
+
+TEST(FakenectFormat, TruncatedOrWrongFilesAreErrorsNamingThem) {
+  std::vector<std::uint8_t> bytes = encode_fakenect_depth(ramp_raw(0));
+  bytes.pop_back();
+  try {
+    decode_fakenect_depth(bytes, "dump/d-1.pgm");
+    FAIL();
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()), "dump/d-1.pgm: truncated: 614399 of 614400 bytes");
+  }
+  EXPECT_THROW(decode_fakenect_rgb(encode_fakenect_depth(ramp_raw(0)), "r.ppm"), InvalidInput);  // P5 is not P6
+  const std::string small = "P5 320 240 65535\n";
+  EXPECT_THROW(decode_fakenect_depth(std::vector<std::uint8_t>(small.begin(), small.end()), "d.pgm"), InvalidInput);
+  EXPECT_THROW(decode_fakenect_depth(std::vector<std::uint8_t>(100, 'x'), "d.pgm"), InvalidInput);  // no newline
+}
+
+TEST(FakenectFormat, DecodersNeverCrashOnRandomBytes) {
+  std::mt19937 rng(7);
+  int rejected = 0;
+  for (int i = 0; i < 300; ++i) {
+    std::vector<std::uint8_t> bytes(rng() % 64);
+    for (auto& b : bytes) b = static_cast<std::uint8_t>(rng());
+    if (i % 3 == 0) {
+      const std::string header = i % 2 ? "P5 640 480 65535\n" : "P6 640 4";
+      bytes.insert(bytes.begin(), header.begin(), header.end());
+    }
+    try {
+      decode_fakenect_depth(bytes, "x");
+    } catch (const InvalidInput&) {
+      ++rejected;
+    }
+    try {
+      decode_fakenect_rgb(bytes, "x");
+    } catch (const InvalidInput&) {
+      ++rejected;
+    }
+  }
+  EXPECT_EQ(rejected, 600);
+}
+
+TEST_F(FakenectDump, WriterAndIndexRoundTrip) {
+  const std::vector<FakenectIndexEntry> written = write_dump(3);
+  const std::vector<FakenectIndexEntry> read = read_fakenect_index(dir_);
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    EXPECT_EQ(read[i].file, written[i].file);
+    EXPECT_EQ(read[i].type, written[i].type);
+    EXPECT_EQ(read[i].timestamp, written[i].timestamp);
+    EXPECT_NEAR(read[i].time_s, written[i].time_s, 1e-6);  // %f: microseconds
+  }
+  EXPECT_EQ(decode_fakenect_depth(read_file_bytes(dir_ / read[3].file), "d"), ramp_raw(1));
+}
+
+TEST_F(FakenectDump, ReplayCameraDeliversMillimetresColourAndTimestamps) {
+  write_dump(3);
+  ReplayCamera camera(dir_, "cam0");
+  EXPECT_EQ(camera.model().depth_intrinsics.fx, 580);
+  EXPECT_EQ(camera.model().color_intrinsics->fx, 525);
+  EXPECT_NEAR(camera.model().color_from_depth.translation().x(), -0.025, 1e-12);
+  for (int i = 0; i < 3; ++i) {
+    LiveFrame frame;
+    ASSERT_EQ(camera.read(frame, 0), ReadStatus::kFrame) << i;
+    EXPECT_EQ(frame.device_timestamp, 1000000u + 2000000u * i);
+    EXPECT_NEAR(frame.time_s, 1700000000.001 + i / 30.0, 2e-6);
+    const RawDepthImage raw = ramp_raw(i);
+    ASSERT_EQ(frame.depth.width, 640);
+    int valid = 0;
+    for (size_t p = 0; p < raw.data.size(); ++p) {
+      ASSERT_EQ(frame.depth.data[p], kinect_raw_to_mm(raw.data[p]));
+      valid += frame.depth.data[p] != 0;
+    }
+    EXPECT_EQ(valid, 279273);  // 640·480 less the (u + v) % 11 == 0 holes
+    ASSERT_TRUE(frame.has_color);
+    EXPECT_EQ(frame.color, pattern_rgb(i));
+  }
+  LiveFrame frame;
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+  EXPECT_EQ(camera.end_reason(), "end of the recording (6 files in INDEX.txt)");
+}
+
+TEST_F(FakenectDump, ATruncatedLastFileEndsTheStreamAfterTheGoodFrames) {
+  const std::vector<FakenectIndexEntry> index = write_dump(3);
+  const fs::path last = dir_ / index.back().file;
+  fs::resize_file(last, 1000);
+  ReplayCamera camera(dir_, "cam0");
+  LiveFrame frame;
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kFrame);
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kFrame);
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+  EXPECT_EQ(camera.end_reason(), last.string() + ": truncated: 983 of 614400 bytes: the recording ends here");
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+}
+
+TEST_F(FakenectDump, PlayableEntriesEndAtTheFirstMissingOrShortFile) {
+  const std::vector<FakenectIndexEntry> index = write_dump(3);
+  std::string problem;
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 6u);
+  EXPECT_EQ(problem, "");
+  fs::resize_file(dir_ / index[5].file, 614400);  // header + 614400 would be whole
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 5u);
+  EXPECT_EQ(problem, (dir_ / index[5].file).string() + ": truncated: 614400 of 614417 bytes");
+  fs::remove(dir_ / index[2].file);
+  EXPECT_EQ(fakenect_playable_entries(dir_, index, problem), 2u);
+  EXPECT_EQ(problem, (dir_ / index[2].file).string() + ": missing");
+}
+
+TEST_F(FakenectDump, ColourOlderThanItsAgeLimitIsNotPaired) {
+  // Depth 0.1 s after the only colour: no colour for it.
+  const FakenectIndexEntry color{.type = 'r', .time_s = 10.0, .timestamp = 1, .file = fakenect_file_name('r', 10.0, 1)};
+  const FakenectIndexEntry depth{.type = 'd', .time_s = 10.1, .timestamp = 2, .file = fakenect_file_name('d', 10.1, 2)};
+  write_fakenect_file(dir_, color, encode_fakenect_rgb(pattern_rgb(0)));
+  write_fakenect_file(dir_, depth, encode_fakenect_depth(ramp_raw(0)));
+  write_fakenect_index(dir_, {color, depth});
+  ReplayCamera camera(dir_, "cam0");
+  LiveFrame frame;
+  ASSERT_EQ(camera.read(frame, 0), ReadStatus::kFrame);
+  EXPECT_FALSE(frame.has_color);
+}
+
+TEST_F(FakenectDump, StopEndsTheReplay) {
+  write_dump(2);
+  ReplayCamera camera(dir_, "cam0");
+  camera.stop();
+  LiveFrame frame;
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+  EXPECT_EQ(camera.end_reason(), "stopped");
+}
+
+}  // namespace
+}  // namespace zipfusion

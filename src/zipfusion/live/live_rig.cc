@@ -1,0 +1,180 @@
+#include "zipfusion/live/live_rig.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "zipfusion/core/error.h"
+#include "zipfusion/live/frame_grouping.h"
+
+namespace zipfusion {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+}  // namespace
+
+void LiveRigOptions::validate() const {
+  if (!(max_wait_s >= 0 && max_wait_s <= 60)) throw InvalidInput("live.max_wait_s: must be in [0, 60] seconds");
+  if (!(read_slice_s > 0 && read_slice_s <= 1)) throw InvalidInput("live.read_slice_s: must be in (0, 1] seconds");
+}
+
+LiveRig::LiveRig(std::vector<std::unique_ptr<LiveCamera>> cameras, const LiveRigOptions& options)
+    : cameras_(std::move(cameras)), options_(options) {
+  options_.validate();
+  if (cameras_.empty()) throw InvalidInput("--devices: no camera selected");
+  fps_ = cameras_[0]->fps();
+  for (const auto& camera : cameras_) {
+    if (!(camera->fps() > 0) || std::abs(camera->fps() - fps_) > 0.01 * fps_) {
+      throw InvalidInput(camera->description() + ": runs at " + std::to_string(camera->fps()) + " fps, " +
+                         cameras_[0]->description() + " at " + std::to_string(fps_) + " fps: a rig's cameras share one frame rate");
+    }
+  }
+  const size_t n = cameras_.size();
+  pending_.resize(n);
+  pending_times_.resize(n);
+  ended_.assign(n, 0);
+  given_up_.assign(n, 0);
+  waited_s_.assign(n, 0);
+  stats_.resize(n);
+}
+
+LiveRig::~LiveRig() { stop(); }
+
+void LiveRig::stop() {
+  for (const auto& camera : cameras_) camera->stop();
+}
+
+std::vector<LiveCameraStats> LiveRig::stats() const {
+  std::vector<LiveCameraStats> out = stats_;
+  for (size_t c = 0; c < cameras_.size(); ++c) out[c].dropped = cameras_[c]->dropped_frames();
+  return out;
+}
+
+std::optional<LiveFrameSet> LiveRig::next() {
+  const int n = camera_count();
+  const double period_s = 1.0 / fps_;
+  std::vector<StreamView> views(n);
+  auto receive = [&](int c, double timeout_s) {
+    LiveFrame frame;
+    const Clock::time_point start = Clock::now();
+    const ReadStatus status = cameras_[c]->read(frame, timeout_s);
+    if (status == ReadStatus::kFrame) {
+      pending_times_[c].push_back(frame.time_s);
+      pending_[c].push_back(std::move(frame));
+      ++stats_[c].frames;
+      waited_s_[c] = 0;
+      given_up_[c] = 0;
+    } else if (status == ReadStatus::kEnded) {
+      ended_[c] = 1;
+      stats_[c].ended = true;
+      stats_[c].end_reason = cameras_[c]->end_reason();
+    } else {
+      waited_s_[c] += seconds_since(start);
+      if (waited_s_[c] >= options_.max_wait_s) given_up_[c] = 1;
+    }
+    return status;
+  };
+  // Cameras given up on are not waited for, but what they have delivered meanwhile is taken.
+  for (int c = 0; c < n; ++c) {
+    while (given_up_[c] && !ended_[c] && receive(c, 0) == ReadStatus::kFrame) {
+    }
+  }
+  while (true) {
+    if (options_.cancel && options_.cancel->load() && !cancelled_) {
+      cancelled_ = true;
+      stop();
+    }
+    for (int c = 0; c < n; ++c) views[c] = {.pending_times = pending_times_[c], .open = !ended_[c] && !given_up_[c]};
+    const GroupStep step = next_group(views, period_s, not_before_s_);
+    for (int c = 0; c < n; ++c) {
+      const int k = step.discard[c];
+      if (k == 0) continue;
+      pending_[c].erase(pending_[c].begin(), pending_[c].begin() + k);
+      pending_times_[c].erase(pending_times_[c].begin(), pending_times_[c].begin() + k);
+      stats_[c].discarded_late += k;
+    }
+    if (step.status == GroupStep::kDone) return std::nullopt;
+    if (step.status == GroupStep::kWait) {
+      const int c = step.wait_for;
+      receive(c, std::clamp(options_.max_wait_s - waited_s_[c], 0.0, options_.read_slice_s));
+      continue;
+    }
+    LiveFrameSet set{.index = next_index_++, .time_s = step.time_s, .skew_s = step.skew_s, .cameras = {}};
+    set.cameras.resize(n);
+    for (int c = 0; c < n; ++c) {
+      waited_s_[c] = 0;
+      if (!step.member[c]) continue;
+      set.cameras[c] = std::move(pending_[c].front());
+      pending_[c].erase(pending_[c].begin());
+      pending_times_[c].erase(pending_times_[c].begin());
+      ++stats_[c].grouped;
+    }
+    not_before_s_ = step.time_s + period_s / 2;
+    return set;
+  }
+}
+
+Rig make_live_rig(const LiveRig& live, const Rig* calibration, const std::string& calibration_source) {
+  Rig rig;
+  rig.fps = live.fps();
+  rig.frame_count = 0;
+  rig.depth_unit_m = 0.001;
+  for (int c = 0; c < live.camera_count(); ++c) rig.cameras.push_back(live.camera(c).model());
+  if (!calibration) return rig;
+  if (calibration->cameras.size() != rig.cameras.size()) {
+    throw InvalidInput(calibration_source + ": cameras: has " + std::to_string(calibration->cameras.size()) + " cameras, but " +
+                       std::to_string(rig.cameras.size()) + (rig.cameras.size() == 1 ? " device is" : " devices are") + " selected");
+  }
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    rig.cameras[c].name = calibration->cameras[c].name;
+    rig.cameras[c].world_from_depth = calibration->cameras[c].world_from_depth;
+  }
+  rig.volume = calibration->volume;
+  rig.poses_trusted = calibration->poses_trusted;
+  return rig;
+}
+
+LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
+  struct State {
+    bool started = false;
+    double first_time_s = 0;
+    int delivered = 0;
+  };
+  auto state = std::make_shared<State>();
+  return [&rig, options = std::move(options), state](double& decode_ms) -> std::optional<FrameSet> {
+    const Clock::time_point start = Clock::now();
+    if (options.max_frames > 0 && state->delivered >= options.max_frames) {
+      rig.stop();
+      return std::nullopt;
+    }
+    std::optional<LiveFrameSet> live = rig.next();
+    if (!live) return std::nullopt;
+    if (!state->started) {
+      state->started = true;
+      state->first_time_s = live->time_s;
+    }
+    if (options.max_seconds > 0 && live->time_s - state->first_time_s >= options.max_seconds) {
+      rig.stop();
+      return std::nullopt;
+    }
+    if (options.observe) options.observe(*live);
+    FrameSet set;
+    set.index = state->delivered++;
+    set.cameras.resize(live->cameras.size());
+    for (size_t c = 0; c < live->cameras.size(); ++c) {
+      std::optional<LiveFrame>& frame = live->cameras[c];
+      if (!frame) continue;
+      set.cameras[c].has_depth = true;
+      set.cameras[c].depth = std::move(frame->depth);
+      set.cameras[c].has_color = frame->has_color;
+      if (frame->has_color) set.cameras[c].color = std::move(frame->color);
+    }
+    decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    return set;
+  };
+}
+
+}  // namespace zipfusion
