@@ -32,6 +32,20 @@ TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   EXPECT_NE(once.out.find("served 6 frame sets"), std::string::npos) << once.out;
 }
 
+// serve --live streams live cameras: here a fakenect dump replayed as a camera (as fast as it
+// reads, so the pipeline drops what it cannot keep up with, as it would for a live device).
+TEST_F(ServeCli, StreamsLiveCameras) {
+  const std::string dump = (dir_ / "dump").string();
+  ASSERT_EQ(run("synth --fakenect " + dump + " --frames 8").exit_code, 0);
+  const CommandResult r = run("serve --live --replay " + dump + " --port 0");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::smatch served;
+  ASSERT_TRUE(std::regex_search(r.out, served, std::regex("served (\\d+) frame sets \\((\\d+) dropped"))) << r.out;
+  EXPECT_EQ(std::stoi(served[1]) + std::stoi(served[2]), 8) << r.out;
+  EXPECT_GE(std::stoi(served[1]), 1) << r.out;
+  EXPECT_NE(run("serve --live --replay " + dump + " --loop --port 0").exit_code, 0);
+}
+
 TEST_F(ServeCli, BadOptionsGiveOneLineAndNonZeroExit) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 2").exit_code, 0);
