@@ -2,6 +2,7 @@
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 DEMO_DIR ?= out/demo
+DEMO_PORT ?= 8080
 
 .PHONY: deps configure build demo test bench clean
 
@@ -27,6 +28,9 @@ demo: build
 	@echo "  ground truth (true poses, true meshes):     $(abspath $(DEMO_DIR)/capture/ground_truth)"
 	@echo "  one zippered, coloured mesh per frame:      $(abspath $(DEMO_DIR)/meshes)/000000.ply ..."
 	@echo "  timings per stage:                          $(abspath $(DEMO_DIR)/meshes)/stats.json"
+	@echo
+	@echo "now streaming the capture live: open the URL below in a browser (Ctrl-C stops)"
+	$(BUILD_DIR)/zipfusion serve $(DEMO_DIR)/capture --loop --port $(DEMO_PORT)
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)

@@ -9,7 +9,7 @@ import { DRACOLoader } from 'three/examples/jsm/loaders/DRACOLoader.js';
 const $ = (id) => document.getElementById(id);
 
 // --- scene -----------------------------------------------------------------------------------
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
 renderer.setSize(window.innerWidth, window.innerHeight);
 $('view').appendChild(renderer.domElement);
@@ -117,6 +117,13 @@ const draco = new DRACOLoader();
 draco.setDecoderPath('draco/');
 draco.setWorkerLimit(2);
 
+// Flow control: every frame received is acknowledged once, when drawn or skipped, and the server
+// keeps at most two unacknowledged, so a viewer slower than the stream gets the newest frame
+// instead of a backlog in the network's buffers.
+function acknowledge() {
+  if (socket.readyState === WebSocket.OPEN) socket.send('{"type":"ack"}');
+}
+
 let paused = false;
 let decoding = false;
 let pending = null;  // the newest frame waiting while one decodes: older ones are skipped
@@ -133,6 +140,7 @@ function parseFrame(data) {
 function show(frame, geometry) {
   mesh.geometry.dispose();
   mesh.geometry = geometry;
+  requestRedraw();
   if (!$('color').checked) geometry.computeVertexNormals();
   const h = frame.header;
   $('frame').textContent = h.frame;
@@ -140,6 +148,7 @@ function show(frame, geometry) {
   $('reconstruct').textContent = `${h.reconstruct_ms.toFixed(1)} + ${h.encode_ms.toFixed(1)} ms`;
   // Drawn at the next animation frame: latency is measured there.
   requestAnimationFrame(() => {
+    acknowledge();
     drawnTimes.push(performance.now());
     latencies.push(Date.now() - h.capture_time_ms);
     if (latencies.length > 60) latencies.shift();
@@ -158,10 +167,12 @@ function decodeNext() {
   decoding = true;
   draco.decodeDracoFile(frame.draco, (geometry) => {
     decoding = false;
-    if (!paused) show(frame, geometry);
+    if (paused) acknowledge();
+    else show(frame, geometry);
     decodeNext();
   }, null, null, THREE.SRGBColorSpace, (error) => {
     decoding = false;
+    acknowledge();
     $('status').textContent = `a frame could not be decoded: ${error}`;
     decodeNext();
   });
@@ -173,7 +184,11 @@ let socket;
 function connect() {
   socket = new WebSocket(url);
   socket.binaryType = 'arraybuffer';
-  socket.onopen = () => { $('status').textContent = 'connected'; };
+  socket.onopen = () => {
+    $('status').textContent = 'connected';
+    // Two frames in flight: one being drawn, one on its way.
+    socket.send(JSON.stringify({ type: 'flow', window: 2 }));
+  };
   socket.onclose = (event) => {
     $('status').textContent = `disconnected (${event.code}${event.reason ? `: ${event.reason}` : ''}); retrying…`;
     setTimeout(connect, 1000);
@@ -191,9 +206,9 @@ function connect() {
       return;
     }
     received.push([performance.now(), event.data.byteLength]);
-    if (paused) return;
-    const frame = parseFrame(event.data);
-    if (frame === null) return;
+    const frame = paused ? null : parseFrame(event.data);
+    if (frame === null) return acknowledge();
+    if (pending !== null) acknowledge();  // the older one is skipped
     pending = frame;
     decodeNext();
   };
@@ -207,7 +222,16 @@ $('play').addEventListener('click', () => {
   if (socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ type: paused ? 'pause' : 'resume' }));
 });
 
+// Drawn on demand: when a frame arrives, the view moves or a setting changes (a loop at the
+// display's rate would spend the CPU of a machine without a GPU on unchanged pictures).
+let redraw = true;
+function requestRedraw() { redraw = true; }
+controls.addEventListener('change', requestRedraw);
+for (const id of ['color', 'wireframe', 'viewpoint']) $(id).addEventListener('change', requestRedraw);
+window.addEventListener('resize', requestRedraw);
 renderer.setAnimationLoop(() => {
   if (controls.enabled) controls.update();
+  if (!redraw) return;
+  redraw = false;
   renderer.render(scene, camera);
 });

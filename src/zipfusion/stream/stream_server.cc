@@ -123,9 +123,19 @@ struct Session : std::enable_shared_from_this<Session> {
     });
   }
 
-  // Queues a message; a full queue skips its oldest frame not being written.
+  // Queues a message; a full queue skips its oldest frame not being written. A client with a
+  // flow window is sent a frame only while fewer than `window` are unacknowledged; meanwhile
+  // the newest frame waits and replaces older ones.
   void enqueue(std::shared_ptr<const std::string> message, bool binary) {
     if (closed || (binary && paused)) return;
+    if (binary && window > 0) {
+      if (in_flight >= window) {
+        if (held) ++server.frames_skipped;
+        held = std::move(message);
+        return;
+      }
+      ++in_flight;
+    }
     const size_t first_waiting = writing ? 1 : 0;
     if (binary && static_cast<int>(queue.size() - first_waiting) >= server.options.client_queue_frames) {
       for (size_t i = first_waiting; i < queue.size(); ++i) {
@@ -182,6 +192,20 @@ struct Session : std::enable_shared_from_this<Session> {
       paused = true;
     } else if (type == "resume") {
       paused = false;
+    } else if (type == "flow") {
+      // {"type": "flow", "window": N}: at most N frames unacknowledged (1..8); 0 turns it off.
+      if (!command.contains("window") || !command["window"].is_number_integer()) return false;
+      const int n = command["window"];
+      if (n < 0 || n > 8) return false;
+      window = n;
+    } else if (type == "ack") {
+      // A frame was drawn: the newest held frame may go.
+      if (in_flight > 0) --in_flight;
+      if (held && (window == 0 || in_flight < window)) {
+        std::shared_ptr<const std::string> next = std::move(held);
+        held.reset();
+        enqueue(std::move(next), true);
+      }
     } else if (type == "ping") {
       nlohmann::json pong = {{"type", "pong"}};
       if (command.contains("t")) pong["t"] = command["t"];
@@ -210,6 +234,8 @@ struct Session : std::enable_shared_from_this<Session> {
   beast::flat_buffer incoming;
   std::deque<std::pair<std::shared_ptr<const std::string>, bool>> queue;  // message, binary (a frame)
   bool writing = false, paused = false, closed = false;
+  int window = 0, in_flight = 0;               // flow control (0: off)
+  std::shared_ptr<const std::string> held;     // with a full window: the newest frame, waiting for an ack
 };
 
 // One HTTP connection: files of the viewer, or the upgrade to the stream.

@@ -125,6 +125,28 @@ TEST_F(StreamServerTest, WithATokenOnlyItsHoldersAreServed) {
   EXPECT_THROW(StreamServer({.port = 0, .token = "a b"}, "{}"), InvalidInput);
 }
 
+// With a flow window of one, a viewer gets a frame only after acknowledging the previous one, and
+// then the newest: no backlog builds up in the network for a viewer slower than the stream.
+TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
+  StreamServer server({.port = 0}, "{}");
+  Client client(server.port());
+  EXPECT_EQ(client.read(), "{}");
+  client.ws.text(true);
+  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":1})")));
+  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":1})")));
+  EXPECT_EQ(client.read(), R"({"t":1,"type":"pong"})");  // the window is set: commands are handled in order
+  for (int k = 0; k < 5; ++k) server.broadcast(frame_message("{\"frame\":" + std::to_string(k) + "}", ""));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":0}", ""));
+  // Frames 1 to 3 are skipped while frame 0 is unacknowledged; the newest, 4, waits.
+  while (server.stats().frames_skipped < 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  client.ws.write(net::buffer(std::string(R"({"type":"ack"})")));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":4}", ""));
+  EXPECT_EQ(server.stats().frames_skipped, 3);
+  // A bad window closes the client, like any malformed command.
+  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":100})")));
+  EXPECT_THROW(client.read(), boost::system::system_error);
+}
+
 TEST_F(StreamServerTest, BadMessagesCloseOnlyTheirClient) {
   StreamServer server({.port = 0}, "{}");
   Client good(server.port()), garbage(server.port()), oversized(server.port());
