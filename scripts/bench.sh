@@ -65,6 +65,21 @@ for size in 320x240 640x480 1280x960; do
   "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_size_$size.json"
 done
 
+step "live stream: Draco frame size, 20 viewers (one stalled), latency to a client and to a browser"
+serve_log="$OUT/serve.log"
+"$ZF" serve "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --loop --port 0 --seconds 75 > "$serve_log" 2>&1 &
+serve_pid=$!
+for _ in $(seq 100); do grep -q "serving http" "$serve_log" && break; sleep 0.2; done
+url=$(grep -o "serving http://[^ ]*" "$serve_log" | head -1 | cut -d" " -f2)
+port=$(echo "$url" | sed -E 's|.*:([0-9]+)/.*|\1|')
+sleep 3  # the loop's first pass decodes the frames
+"$BUILD_DIR/zf_stream_clients" --port "$port" --clients 20 --stalled 1 --seconds 15 --json > "$OUT/stream_clients.json"
+"$BUILD_DIR/zf_stream_clients" --port "$port" --clients 1 --stalled 0 --seconds 10 --json > "$OUT/stream_one_client.json"
+node bench/stream_latency.mjs "$url" --seconds 20 > "$OUT/stream_browser.json"
+kill -INT "$serve_pid" 2> /dev/null || true
+wait "$serve_pid" 2> /dev/null || true
+"$BUILD_DIR/zf_draco_bench" "$SAMBA" --frames "$FRAMES" --json > "$OUT/stream_draco.json"
+
 step "kernels (Google Benchmark)"
 "$BUILD_DIR/zf_kernel_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/kernels.json"
 "$BUILD_DIR/zf_micro_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/micro.json"

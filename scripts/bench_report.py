@@ -133,6 +133,31 @@ def main(folder):
                 f"{s['rss_mb_early']:.0f} MB after {s['early_frames']}, {s['rss_mb_at_end']:.0f} MB after {s['frames']}; "
                 f"peak {samba['peak_rss_mb']:.0f} MB.", ""]
 
+    clients, one, browser, draco = (load(folder, f"stream_{n}.json") for n in ("clients", "one_client", "browser", "draco"))
+    if clients and draco:
+        out += ["## The live stream (issue 8)", "",
+                "`zipfusion serve` on samba-4cam (true poses, level of detail 1, Draco 11-bit positions, compression level 7), "
+                "looping at 30 fps; clients on the same machine (loopback).", "",
+                "| Draco, 4-camera frame set (mean over the frames) | level of detail 0 (full depth) | level of detail 1 (the stream's) |",
+                "|---|---|---|",
+                f"| triangles | {draco['lod0']['triangles']:.0f} | {draco['lod1']['triangles']:.0f} |",
+                f"| compressed, kB | {draco['lod0']['kb']:.1f} | {draco['lod1']['kb']:.1f} |",
+                f"| Mbit/s at 30 fps | {draco['lod0']['kb'] * 8 * 30 / 1000:.1f} | {draco['lod1']['kb'] * 8 * 30 / 1000:.1f} |",
+                f"| encoding, ms (median) | {draco['lod0']['encode_ms']:.1f} | {draco['lod1']['encode_ms']:.1f} |",
+                f"| largest position error / bound, mm | {draco['lod0']['max_error_mm']:.2f} / {draco['bound_mm']:.2f} | "
+                f"{draco['lod1']['max_error_mm']:.2f} / {draco['bound_mm']:.2f} |", "",
+                "| viewers | frames/s per reading viewer (min–max) | capture → arrival latency, ms (median / p95) | kB per frame |",
+                "|---|---|---|---|"]
+        for label, r in (("1", one), (f"{clients['clients']} ({clients['stalled']} stalled)", clients)):
+            if r:
+                out.append(f"| {label} | {r['reader_fps_min']:.1f}–{r['reader_fps_max']:.1f} | {r['latency_ms_median']:.1f} / {r['latency_ms_p95']:.1f} | "
+                           f"{r['frame_kb_mean']:.1f} |")
+        if browser:
+            out += ["", f"In headless Chromium (Debian's, software WebGL: this machine has no GPU) on the same two cores as the server: "
+                    f"capture → drawn latency {browser['latency_ms_median']:.0f} ms (median of the viewer's own median over "
+                    f"{browser['samples']} readings), drawing {browser['fps_median']:.1f} frames/s (`node bench/stream_latency.mjs URL`)."]
+        out.append("")
+
     kernels = [load(folder, name) for name in ("kernels.json", "micro.json")]
     if any(kernels):
         out += ["## Kernels (Google Benchmark: `zf_kernel_bench` on samba-4cam frame 0, one camera; `zf_micro_bench`)", "",
