@@ -2,7 +2,7 @@
 //! \file
 //! The frame pipeline: a source thread decodes frame sets, the calling thread reconstructs them
 //! (each stage over all cameras in parallel), a sink thread consumes the meshes (writes them,
-//! later streams them). Stages are joined by bounded queues, so a slow sink holds back the
+//! or compresses and streams them: serve). Stages are joined by bounded queues, so a slow sink holds back the
 //! reconstruction and a slow reconstruction holds back decoding, with memory bounded by the
 //! queue depth.
 //!
