@@ -82,13 +82,13 @@ void BM_LookupColors(benchmark::State& state) {
 }
 BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
 
-// The border distance on the coarsest level (L = 2), as the zipper computes it.
+// The border distance on pyramid level 1, as the zipper computes it.
 void BM_BorderDistance(benchmark::State& state) {
   const Frame& f = frame();
   DepthMesh coarse;
-  downsample_mesh(f.meshes[0], 2, 0.03f, coarse);
+  downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
   BorderDistance border;
-  for (auto _ : state) compute_border_distance(coarse, 2, 1, border);
+  for (auto _ : state) compute_border_distance(coarse, 1, 1, border);
 }
 BENCHMARK(BM_BorderDistance)->Unit(benchmark::kMillisecond);
 

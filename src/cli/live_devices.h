@@ -75,8 +75,13 @@ inline std::atomic<bool>& stop_requested() {
   return flag;
 }
 
+//! Idempotent: a second call (serve installs it, then opens live cameras, which install it too)
+//! keeps a Ctrl-C that came in between.
 inline void install_stop_on_signal() {
   static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler stores to it");
+  static bool installed = false;
+  if (installed) return;
+  installed = true;
   stop_requested().store(false);  // also constructs the flag before any signal can arrive
   struct sigaction action {};
   action.sa_handler = [](int) { stop_requested().store(true); };

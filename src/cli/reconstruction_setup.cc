@@ -79,7 +79,7 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   register_mode_ = args.register_mode == "auto" ? (rig_.poses_trusted ? "off" : "background") : args.register_mode;
 
   // --register once: refine on frames spread over the range, then keep those poses.
-  Rig start_rig = rig_;
+  start_rig_ = rig_;
   if (register_mode_ == "once") {
     if (capture == nullptr) throw InvalidInput("--register once: needs a capture");
     args.background.registration.validate();
@@ -89,11 +89,11 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
       depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
     }
     const RegistrationResult refined = register_rig(rig_, depth, args.background.registration);
-    for (size_t c = 0; c < start_rig.cameras.size(); ++c) start_rig.cameras[c].world_from_depth = refined.world_from_depth[c];
+    for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
     pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
   }
   if (register_mode_ == "background") background_ = std::make_unique<BackgroundRegistration>(rig_, args.background);
-  reconstructor_ = std::make_unique<FrameReconstructor>(start_rig, options);
+  reconstructor_ = std::make_unique<FrameReconstructor>(start_rig_, options);
 }
 
 PipelineOptions Reconstruction::pipeline_options() {

@@ -39,9 +39,12 @@ class Reconstruction {
  public:
   //! Throws InvalidInput for bad options.
   Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range);
+  // The background registration's hook refers to this object.
+  Reconstruction(const Reconstruction&) = delete;
+  Reconstruction& operator=(const Reconstruction&) = delete;
 
   FrameReconstructor& reconstructor() { return *reconstructor_; }
-  const Rig& rig() const { return rig_; }  // the poses reconstruction starts from
+  const Rig& rig() const { return start_rig_; }  // the poses reconstruction starts from (refined, with once)
   const std::string& register_mode() const { return register_mode_; }
   //! The pipeline's options, with the background registration's hook when it runs.
   PipelineOptions pipeline_options();
@@ -49,7 +52,8 @@ class Reconstruction {
   const nlohmann::ordered_json& pose_updates() const { return pose_updates_; }
 
  private:
-  Rig rig_;
+  Rig rig_;        // as given
+  Rig start_rig_;  // refined by --register once, or as given
   std::string register_mode_;
   std::unique_ptr<FrameReconstructor> reconstructor_;
   std::unique_ptr<BackgroundRegistration> background_;

@@ -206,7 +206,12 @@ function connect() {
       return;
     }
     received.push([performance.now(), event.data.byteLength]);
-    const frame = paused ? null : parseFrame(event.data);
+    let frame = null;
+    try {
+      if (!paused) frame = parseFrame(event.data);
+    } catch (error) {
+      $('status').textContent = `a frame's header could not be read: ${error}`;
+    }
     if (frame === null) return acknowledge();
     if (pending !== null) acknowledge();  // the older one is skipped
     pending = frame;

@@ -153,10 +153,9 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
 }
 
 // Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a 5×5
-// window) on the same surface (within 3 cm, the SDC threshold), in the camera frame.
-Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel) {
+// window) on the same surface (within `same_surface`, the SDC threshold), in the camera frame.
+Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float same_surface) {
   constexpr int kRadius = 2;
-  constexpr float kSameSurface = 0.03f;
   const DepthMesh& mesh = *view.mesh;
   const int u = pixel % mesh.width, v = pixel / mesh.width;
   const float centre = mesh.depth[pixel];
@@ -165,7 +164,7 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel) {
   for (int y = std::max(0, v - kRadius); y <= std::min(mesh.height - 1, v + kRadius); ++y) {
     const float* row = mesh.depth.data() + y * mesh.width;
     for (int x = std::max(0, u - kRadius); x <= std::min(mesh.width - 1, u + kRadius); ++x) {
-      if (row[x] > 0 && std::abs(row[x] - centre) < kSameSurface) {
+      if (row[x] > 0 && std::abs(row[x] - centre) < same_surface) {
         sum += row[x];
         ++count;
       }
@@ -218,7 +217,7 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
   auto layout_position = [&](const PixelVertex& v) -> Eigen::Vector3f {
     const MeshView& view = v.camera == a.camera ? a : b;
-    return (v.camera == a.camera ? world_from_a : world_from_b) * smoothed_camera_point(view, v.pixel);
+    return (v.camera == a.camera ? world_from_a : world_from_b) * smoothed_camera_point(view, v.pixel, options.same_surface);
   };
 
   // The virtual camera halfway between the two.

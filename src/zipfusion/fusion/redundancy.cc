@@ -70,8 +70,6 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 
 }  // namespace
 
-// Does `b` see the surface at point p (in a's cell `cell`) better than `a`? Both distances are
-// taken at p itself, so the two meshes agree on every point and meet without a gap.
 void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
   boundary.clear();
   for_each_triangle_id(mesh, [&](int id) {
@@ -248,7 +246,9 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
     }
   }
   cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
-  cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
+  // Dilated by the reach of the finest level's window search (4 pixels) in this level's cells.
+  const int reach = (4 + (1 << a.level) - 1) >> a.level;
+  cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {2 * reach + 1, 2 * reach + 1}));
 }
 
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse) {

@@ -12,9 +12,9 @@
 //!
 //! "Sees it better" goes beyond the paper, whose test is only "any triangle of B within d_r":
 //! a mesh's triangles far inside its own coverage (in pixels from its silhouette or a large hole)
-//! are seen frontally and near, those at its border at grazing angles. Each triangle carries that
-//! distance (`interior`, computed once per frame with small holes closed), and the mesh with the
-//! larger one keeps the surface; ties go to the lower camera index. With the paper's test the
+//! are seen frontally and near, those at its border at grazing angles. That distance
+//! (`BorderDistance`, computed once per frame with small holes closed) is compared at the same
+//! point in both images, and the mesh with the larger one keeps the surface; ties go to the lower camera index. With the paper's test the
 //! meshes eat into the overlap from both sides and stop d_r apart; where both end at the same
 //! place (a silhouette both see, or one camera seeing all the other sees) each border is redundant
 //! against the other's next ring and the two peel each other away. With ownership the overlap is
@@ -202,7 +202,7 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
 
 //! Element function: false when camera `b` certainly does not see point p: it is outside b's
 //! image, or every pixel next to its projection has a depth (of another surface) more than
-//! `depth_tolerance` from p's. Optionally returns the cell p projects to.
+//! `depth_tolerance` from p's. `p` is the point projected into b (its cell is where to look).
 bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
 //! Element function: does `b` see the surface at point p, which lies at (a_x, a_y) in a's image

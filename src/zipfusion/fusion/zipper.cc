@@ -79,7 +79,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                          level};
     }
     // Ownership at every level from one border distance.
-    const int border_level = std::min(levels, kBorderLevel);
+    // Level 1 of the full-resolution depth, whatever level of detail the meshes come from.
+    const int border_level = std::min(levels, std::max(0, kBorderLevel - options.depth_level));
     compute_border_distance(*views[c][border_level].mesh, border_level, std::max(1, options.hole_closing_px >> border_level), s.border);
   }, options.num_threads);
   result.stats.pyramid_ms = ms_since(t);
@@ -154,7 +155,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   std::vector<Seam> seams(result.pairs.size());
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
-                                 .ownership_distance = d_r};
+                                 .ownership_distance = d_r,
+                                 .same_surface = static_cast<float>(options.sdc_max_depth_jump_m)};
   for (const auto& round : rounds) {
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
       const auto [a, b] = round[i];

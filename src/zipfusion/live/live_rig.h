@@ -2,7 +2,7 @@
 //! \file
 //! LiveRig: N live cameras as one stream of frame sets, grouped by timestamp (frame_grouping.h:
 //! members within half a frame period, the skew reported), and the pipeline's FrameSource over it
-//! (`reconstruct --live`, and `serve --live` once it exists). Uses core and io only: the pipeline
+//! (`reconstruct --live`, and `serve --live`). Uses core and io only: the pipeline
 //! takes the source without the live layer knowing the pipeline.
 //!
 //! A class: the grouping's pending frames and each camera's state live across calls. next() and

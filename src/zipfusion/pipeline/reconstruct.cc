@@ -31,6 +31,7 @@ ReconstructOptions at_depth_level(ReconstructOptions options) {
   options.filter.radius_px = std::max(1, static_cast<int>(options.filter.radius_px / scale));
   options.zipper.hole_closing_px >>= level;
   options.zipper.coarse_levels = std::max(0, options.zipper.coarse_levels - level);
+  options.zipper.depth_level = level;
   return options;
 }
 
@@ -81,6 +82,10 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     if (options_.depth_level > 0) {
       const int step = 1 << options_.depth_level;
       const Intrinsics& k = rig_.cameras[c].depth_intrinsics;
+      if ((raw->width - 1) / step + 1 != k.width || (raw->height - 1) / step + 1 != k.height) {
+        throw InvalidInput(rig_.cameras[c].name + ": depth image " + std::to_string(raw->width) + "x" + std::to_string(raw->height) +
+                           " does not match the rig's depth_intrinsics");
+      }
       s.subsampled.resize(k.width, k.height);
       for (int v = 0; v < k.height; ++v) {
         for (int u = 0; u < k.width; ++u) s.subsampled(u, v) = (*raw)(u * step, v * step);

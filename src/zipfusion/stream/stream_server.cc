@@ -34,28 +34,29 @@ bool same_secret(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
-// The value of `key` in a query string ("a=1&token=xyz"), or "".
-std::string query_value(const std::string& query, const std::string& key) {
-  std::istringstream in(query);
+// The value of `key` in "a=1&token=xyz" (a query, separator '&') or "a=1; zf_token=xyz" (a
+// cookie header, ';'), or "".
+std::string field_value(const std::string& text, const std::string& key, char separator) {
+  std::istringstream in(text);
   std::string item;
-  while (std::getline(in, item, '&')) {
-    const size_t eq = item.find('=');
-    if (eq != std::string::npos && item.substr(0, eq) == key) return item.substr(eq + 1);
+  while (std::getline(in, item, separator)) {
+    const size_t start = item.find_first_not_of(' ');
+    if (start == std::string::npos) continue;
+    const size_t eq = item.find('=', start);
+    if (eq != std::string::npos && item.compare(start, eq - start, key) == 0) return item.substr(eq + 1);
   }
   return "";
 }
 
-std::string cookie_value(const std::string& cookies, const std::string& key) {
-  std::istringstream in(cookies);
-  std::string item;
-  while (std::getline(in, item, ';')) {
-    const size_t start = item.find_first_not_of(' ');
-    if (start == std::string::npos) continue;
-    item = item.substr(start);
-    const size_t eq = item.find('=');
-    if (eq != std::string::npos && item.substr(0, eq) == key) return item.substr(eq + 1);
+// Is `host` (a Host header: name or address, optional port) this machine's loopback?
+bool loopback_host(const std::string& host) {
+  std::string name = host;
+  if (!name.empty() && name.front() == '[') {
+    name = name.substr(1, name.find(']') - 1);  // [::1]:8080
+  } else if (std::count(name.begin(), name.end(), ':') == 1) {
+    name = name.substr(0, name.find(':'));
   }
-  return "";
+  return name == "localhost" || name == "::1" || name.rfind("127.", 0) == 0;
 }
 
 const char* content_type(const std::filesystem::path& file) {
@@ -90,11 +91,19 @@ struct Session;
 
 }  // namespace
 
+// Clients at most: beyond, a connection is refused (each costs a socket and a queue of frames).
+constexpr int kMaxClients = 64;
+// Text messages (the hello, pongs) a client may have waiting: more means it sends commands and
+// does not read, and it is closed.
+constexpr int kMaxWaitingReplies = 8;
+
 struct StreamServer::Impl {
   StreamServerOptions options;
+  int port = 0;
   std::string hello;
   net::io_context io{1};
   tcp::acceptor acceptor{io};
+  net::steady_timer accept_retry{io};
   std::set<std::shared_ptr<Session>> sessions;  // touched on the io thread only
   std::thread thread;
   std::atomic<long> clients_total{0}, refused{0}, closed_bad_message{0}, frames_broadcast{0}, frames_sent{0}, frames_skipped{0}, bytes_sent{0};
@@ -102,6 +111,7 @@ struct StreamServer::Impl {
 
   void accept();
   bool authorised(const http::request<http::string_body>& request, const std::string& query) const;
+  bool same_origin(const http::request<http::string_body>& request) const;
 };
 
 namespace {
@@ -137,11 +147,15 @@ struct Session : std::enable_shared_from_this<Session> {
       ++in_flight;
     }
     const size_t first_waiting = writing ? 1 : 0;
+    if (!binary && std::count_if(queue.begin(), queue.end(), [](const auto& m) { return !m.second; }) >= kMaxWaitingReplies) {
+      return refuse("commands sent faster than the replies are read");
+    }
     if (binary && static_cast<int>(queue.size() - first_waiting) >= server.options.client_queue_frames) {
       for (size_t i = first_waiting; i < queue.size(); ++i) {
         if (queue[i].second) {
           queue.erase(queue.begin() + static_cast<long>(i));
           ++server.frames_skipped;
+          if (window > 0 && in_flight > 0) --in_flight;  // never sent, so never acknowledged
           break;
         }
       }
@@ -218,6 +232,7 @@ struct Session : std::enable_shared_from_this<Session> {
 
   // Closes this client only, saying why.
   void refuse(const char* why) {
+    if (closed) return;
     ++server.closed_bad_message;
     closed = true;
     ws.async_close(websocket::close_reason(websocket::close_code::policy_error, why), [self = shared_from_this()](beast::error_code) { self->finish(); });
@@ -255,6 +270,11 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
 
   void respond(http::request<http::string_body> request) {
     const std::string target(request.target());
+    if (target.empty() || target.front() != '/') return send(text_response(request, http::status::bad_request, "bad request target"));
+    if (!server.same_origin(request)) return send(text_response(request, http::status::forbidden, "another site's page may not use this stream"));
+    if (server.clients >= kMaxClients && websocket::is_upgrade(request)) {
+      return send(text_response(request, http::status::service_unavailable, "too many viewers"));
+    }
     const size_t question = target.find('?');
     const std::string path = target.substr(0, question), query = question == std::string::npos ? "" : target.substr(question + 1);
     if (!server.authorised(request, query)) {
@@ -272,8 +292,9 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     const std::string relative = path == "/" ? "index.html" : path.substr(1);
     if (server.options.web_root.empty() || !safe_relative_path(relative)) return send(text_response(request, http::status::not_found, "not found"));
     const std::filesystem::path file = server.options.web_root / relative;
+    std::error_code ec;
     std::ifstream in(file, std::ios::binary);
-    if (!in) return send(text_response(request, http::status::not_found, "not found"));
+    if (!std::filesystem::is_regular_file(file, ec) || !in) return send(text_response(request, http::status::not_found, "not found"));
     std::ostringstream body;
     body << in.rdbuf();
     auto response = std::make_shared<http::response<http::string_body>>(http::status::ok, request.version());
@@ -285,7 +306,8 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     }
     response->keep_alive(request.keep_alive());
     response->body() = body.str();
-    response->prepare_payload();
+    response->prepare_payload();  // HEAD: the length of the body, which is then not sent
+    if (request.method() == http::verb::head) response->body().clear();
     send(response);
   }
 
@@ -319,17 +341,35 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
 }  // namespace
 
 void StreamServer::Impl::accept() {
-  acceptor.async_accept(net::make_strand(io), [this](beast::error_code ec, tcp::socket socket) {
+  acceptor.async_accept(io, [this](beast::error_code ec, tcp::socket socket) {
     if (ec == net::error::operation_aborted) return;
-    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    if (ec) {
+      // Out of sockets or the like: try again a little later rather than spin the network thread.
+      accept_retry.expires_after(std::chrono::milliseconds(100));
+      accept_retry.async_wait([this](beast::error_code wait) {
+        if (!wait) accept();
+      });
+      return;
+    }
+    std::make_shared<HttpSession>(std::move(socket), *this)->read();
     accept();
   });
 }
 
+bool StreamServer::Impl::same_origin(const http::request<http::string_body>& request) const {
+  // A page of another site may open a WebSocket to this machine (browsers allow it): refuse
+  // requests whose Origin is not this server. Served on loopback, the Host must be loopback too,
+  // so a name rebound to 127.0.0.1 by its DNS cannot reach it.
+  const std::string host(request[http::field::host]);
+  if (loopback_host(options.bind_address) && !loopback_host(host)) return false;
+  const std::string origin(request[http::field::origin]);
+  return origin.empty() || origin == "http://" + host || origin == "https://" + host;
+}
+
 bool StreamServer::Impl::authorised(const http::request<http::string_body>& request, const std::string& query) const {
   if (options.token.empty()) return true;
-  return same_secret(query_value(query, "token"), options.token) ||
-         same_secret(cookie_value(std::string(request[http::field::cookie]), kTokenCookie), options.token);
+  return same_secret(field_value(query, "token", '&'), options.token) ||
+         same_secret(field_value(std::string(request[http::field::cookie]), kTokenCookie, ';'), options.token);
 }
 
 void StreamServerOptions::validate() const {
@@ -369,8 +409,18 @@ StreamServer::StreamServer(const StreamServerOptions& options, std::string hello
   if (!ec) impl_->acceptor.bind(endpoint, ec);
   if (!ec) impl_->acceptor.listen(net::socket_base::max_listen_connections, ec);
   if (ec) throw IoError(where + ": cannot listen: " + ec.message());
+  impl_->port = impl_->acceptor.local_endpoint().port();
   impl_->accept();
-  impl_->thread = std::thread([this] { impl_->io.run(); });
+  impl_->thread = std::thread([impl = impl_.get()] {
+    // A handler that throws ends only its own work, never the stream.
+    while (true) {
+      try {
+        impl->io.run();
+        return;
+      } catch (const std::exception&) {
+      }
+    }
+  });
 }
 
 StreamServer::~StreamServer() {
@@ -383,13 +433,14 @@ StreamServer::~StreamServer() {
   impl_->sessions.clear();
 }
 
-int StreamServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+int StreamServer::port() const { return impl_->port; }
 
 void StreamServer::broadcast(std::string message) {
   ++impl_->frames_broadcast;
   auto shared = std::make_shared<const std::string>(std::move(message));
   net::post(impl_->io, [impl = impl_.get(), shared] {
-    for (const auto& session : std::set<std::shared_ptr<Session>>(impl->sessions)) session->enqueue(shared, true);
+    // enqueue may close a session (refuse), which leaves the set only in a later handler.
+    for (const auto& session : impl->sessions) session->enqueue(shared, true);
   });
 }
 

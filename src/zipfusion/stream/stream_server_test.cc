@@ -45,6 +45,19 @@ HttpReply http_get(int port, const std::string& target, const std::string& cooki
   return {static_cast<int>(response.result_int()), response.body(), std::string(response[http::field::set_cookie])};
 }
 
+// The status line of the reply to a request written by hand.
+std::string raw_request(int port, const std::string& request) {
+  net::io_context io;
+  tcp::socket socket(io);
+  socket.connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
+  net::write(socket, net::buffer(request));
+  std::string reply(64, '\0');
+  beast::error_code ec;
+  const size_t n = socket.read_some(net::buffer(reply), ec);
+  reply.resize(n);
+  return reply.substr(0, reply.find("\r\n"));
+}
+
 // A WebSocket client of the stream on its own connection (blocking calls).
 struct Client {
   net::io_context io;
@@ -85,9 +98,15 @@ TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   EXPECT_EQ(page.status, 200);
   EXPECT_NE(page.body.find("<title>viewer</title>"), std::string::npos);
   EXPECT_EQ(http_get(server.port(), "/draco/decoder.js").status, 200);
-  for (const char* bad : {"/../etc/passwd", "/draco/../../x", "/.hidden", "/a/b/c.js", "/missing.js"}) {
+  for (const char* bad : {"/../etc/passwd", "/draco/../../x", "/.hidden", "/a/b/c.js", "/missing.js", "/draco"}) {
     EXPECT_EQ(http_get(server.port(), bad).status, 404) << bad;
   }
+  // A target without its leading slash, another site's page, a name rebound to this machine:
+  // refused, and the server goes on.
+  EXPECT_EQ(raw_request(server.port(), "GET ?x HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"), "HTTP/1.1 400 Bad Request");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nOrigin: http://evil.example\r\n\r\n"), "HTTP/1.1 403 Forbidden");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: rebound.example:8080\r\n\r\n"), "HTTP/1.1 403 Forbidden");
+  EXPECT_EQ(http_get(server.port(), "/").status, 200);
   Client client(server.port());
   bool binary = true;
   EXPECT_EQ(client.read(&binary), R"({"format":"zipfusion.stream/1"})");
