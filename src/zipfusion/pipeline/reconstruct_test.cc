@@ -48,20 +48,32 @@ TEST(Reconstruct, RealCapturesGiveMeshesWithoutJumps) {
   }
 }
 
-// On a synthetic capture with true poses, the separate meshes lie on the true surface.
-TEST(Reconstruct, SeparateMeshesLieOnTheTrueSurface) {
+// Frame 0 of the built-in subject seen by a ring of `cameras` with the Kinect model, true poses.
+struct SyntheticFrame {
+  Rig rig;
+  TriangleMesh truth;
+  FrameSet frames;
+};
+
+SyntheticFrame synthetic_frame(int cameras) {
   SynthOptions options;
   options.frames = 1;
-  options.cameras = 3;
-  Rig rig = make_ring_rig(options);
-  rig.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}};
-  const TriangleMesh truth = subject_mesh(options, 0);
-  FrameSet frames;
-  for (int c = 0; c < 3; ++c) {
-    SyntheticView view = render_view(truth, rig, c, 0, options);
-    frames.cameras.push_back({.has_depth = true, .depth = std::move(view.depth), .has_color = true, .color = std::move(view.color)});
+  options.cameras = cameras;
+  SyntheticFrame out{make_ring_rig(options), subject_mesh(options, 0), {}};
+  out.rig.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}};
+  for (int c = 0; c < cameras; ++c) {
+    SyntheticView view = render_view(out.truth, out.rig, c, 0, options);
+    out.frames.cameras.push_back({.has_depth = true, .depth = std::move(view.depth), .has_color = true, .color = std::move(view.color)});
   }
-  const MeshDistance distance(truth);
+  return out;
+}
+
+// On a synthetic capture with true poses, the separate meshes lie on the true surface.
+TEST(Reconstruct, SeparateMeshesLieOnTheTrueSurface) {
+  const SyntheticFrame scene = synthetic_frame(3);
+  const Rig& rig = scene.rig;
+  const FrameSet& frames = scene.frames;
+  const MeshDistance distance(scene.truth);
   for (bool bilateral : {false, true}) {
     FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kSeparate, .bilateral = bilateral});
     const FrameResult result = reconstructor.reconstruct(frames);
@@ -82,18 +94,10 @@ TEST(Reconstruct, SeparateMeshesLieOnTheTrueSurface) {
 // A level of detail: every second depth pixel gives a quarter of the triangles on the same surface,
 // zippered into one mesh.
 TEST(Reconstruct, CoarserLevelOfDetailKeepsTheSurface) {
-  SynthOptions options;
-  options.frames = 1;
-  options.cameras = 4;
-  Rig rig = make_ring_rig(options);
-  rig.volume = Box3d{{-1, -1, 0.02}, {1, 1, 2.2}};
-  const TriangleMesh truth = subject_mesh(options, 0);
-  FrameSet frames;
-  for (int c = 0; c < 4; ++c) {
-    SyntheticView view = render_view(truth, rig, c, 0, options);
-    frames.cameras.push_back({.has_depth = true, .depth = std::move(view.depth), .has_color = true, .color = std::move(view.color)});
-  }
-  const MeshDistance distance(truth);
+  const SyntheticFrame scene = synthetic_frame(4);
+  const Rig& rig = scene.rig;
+  const FrameSet& frames = scene.frames;
+  const MeshDistance distance(scene.truth);
   auto median_error = [&](const TriangleMesh& mesh) {
     std::vector<float> d;
     for (const Eigen::Vector3f& p : mesh.positions) d.push_back(distance.closest(p, 1.0f).distance);
