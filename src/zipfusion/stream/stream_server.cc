@@ -118,7 +118,7 @@ namespace {
 
 // One WebSocket client: its queue of messages waiting to be written, one write at a time.
 struct Session : std::enable_shared_from_this<Session> {
-  Session(tcp::socket socket, StreamServer::Impl& server) : ws(std::move(socket)), server(server) {}
+  Session(tcp::socket socket, StreamServer::Impl& owner) : ws(std::move(socket)), server(owner) {}
 
   void start(http::request<http::string_body> request) {
     ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
@@ -255,7 +255,7 @@ struct Session : std::enable_shared_from_this<Session> {
 
 // One HTTP connection: files of the viewer, or the upgrade to the stream.
 struct HttpSession : std::enable_shared_from_this<HttpSession> {
-  HttpSession(tcp::socket socket, StreamServer::Impl& server) : stream(std::move(socket)), server(server) {}
+  HttpSession(tcp::socket socket, StreamServer::Impl& owner) : stream(std::move(socket)), server(owner) {}
 
   void read() {
     parser.emplace();
