@@ -2,18 +2,12 @@
 // frame rate, reconstructed, compressed with Draco and streamed over one HTTP port to the viewer
 // in the browser (web/, served from the same port).
 
-#include <unistd.h>
-
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <map>
-#include <mutex>
 #include <thread>
 
 #include "cli/commands.h"
@@ -74,7 +68,7 @@ std::string hello_json(const Rig& rig, const ServeArgs& args, const Quantization
                                   {"fps", rig.fps},
                                   {"lod", args.reconstruction.options.depth_level},
                                   {"position_bits", args.draco.position_bits},
-                                  {"quantization_step_m", box.range / static_cast<float>((1u << args.draco.position_bits) - 1)},
+                                  {"quantization_step_m", box.step(args.draco.position_bits)},
                                   {"cameras", cameras}};
   if (rig.volume) {
     hello["volume"] = {{"min", {rig.volume->min.x(), rig.volume->min.y(), rig.volume->min.z()}},

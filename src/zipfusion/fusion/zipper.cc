@@ -78,8 +78,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.border, c,
                          level};
     }
-    // Ownership at every level from one border distance.
-    // Level 1 of the full-resolution depth, whatever level of detail the meshes come from.
+    // Ownership at every level from one border distance, on level 1 of the full-resolution depth
+    // whatever level of detail the meshes come from.
     const int border_level = std::min(levels, std::max(0, kBorderLevel - options.depth_level));
     compute_border_distance(*views[c][border_level].mesh, border_level, std::max(1, options.hole_closing_px >> border_level), s.border);
   }, options.num_threads);

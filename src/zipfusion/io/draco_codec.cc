@@ -18,8 +18,7 @@ void DracoOptions::validate() const {
 
 float QuantizationBox::max_error(int bits) const {
   // Each coordinate rounds to the nearest of 2^bits − 1 steps over the range: at most half a step.
-  const float step = range / static_cast<float>((1u << bits) - 1);
-  return 0.5f * step * std::sqrt(3.0f);
+  return 0.5f * step(bits) * std::sqrt(3.0f);
 }
 
 QuantizationBox quantization_box(const TriangleMesh& mesh, const std::optional<Box3d>& volume) {

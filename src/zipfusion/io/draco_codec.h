@@ -30,6 +30,8 @@ struct QuantizationBox {
   Eigen::Vector3f origin = Eigen::Vector3f::Zero();
   float range = 1;
 
+  //! The grid's spacing at `bits` per coordinate, metres.
+  float step(int bits) const { return range / static_cast<float>((1u << bits) - 1); }
   //! Largest distance between a point and its quantised position, metres.
   float max_error(int bits) const;
 };
