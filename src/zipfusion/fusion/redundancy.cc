@@ -70,11 +70,46 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
 
 }  // namespace
 
+namespace {
+
+// is_boundary_triangle for cells 1..count−1 of a row at once, as bits per cell: `row` is the
+// row's bit matrix from its first cell, `above` and `below` the rows next to it (cell 0 is left
+// to the caller, whose left neighbour may not exist). Branch-free, so it vectorises.
+__attribute__((target_clones("avx2", "default"))) void boundary_row(const std::uint8_t* row, const std::uint8_t* above,
+                                                                    const std::uint8_t* below, int count, std::uint8_t* out) {
+  for (int i = 1; i < count; ++i) {
+    const unsigned cell = row[i];
+    // The upper triangle's neighbours are lower triangles (bit 2), the lower's upper ones (bit 1).
+    const unsigned upper_inside = (cell & above[i] & row[i - 1] & kLowerTriangle) >> 1;
+    const unsigned lower_inside = cell & below[i] & row[i + 1] & kUpperTriangle;
+    out[i] = static_cast<std::uint8_t>((cell & kUpperTriangle & ~upper_inside) | (cell & kLowerTriangle & ~(lower_inside << 1)));
+  }
+}
+
+}  // namespace
+
 void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
   boundary.clear();
-  for_each_triangle_id(mesh, [&](int id) {
-    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) boundary.push_back(id);
-  });
+  const PixelBox box = mesh.box();
+  // Triangles lie in the cells of the depth box but its last row and column (and none of the
+  // image's last row or column).
+  const int u0 = box.u0, u1 = std::min(box.u1, mesh.width - 1), v1 = std::min(box.v1, mesh.height - 1);
+  if (u1 <= u0 || v1 <= box.v0) return;
+  const int count = u1 - u0;
+  std::vector<std::uint8_t> flags(count), empty_row(count + 1, 0);
+  const std::uint8_t* t = mesh.triangles.data();
+  for (int v = box.v0; v < v1; ++v) {
+    const int first = v * mesh.width + u0;
+    const std::uint8_t* above = v > 0 ? t + first - mesh.width : empty_row.data();
+    boundary_row(t + first, above, t + first + mesh.width, count, flags.data());
+    flags[0] = is_boundary_triangle(t, first, mesh.width, kUpperTriangle) * kUpperTriangle +
+               is_boundary_triangle(t, first, mesh.width, kLowerTriangle) * kLowerTriangle;
+    for (int i = 0; i < count; ++i) {
+      if (!flags[i]) continue;
+      if (flags[i] & kUpperTriangle) boundary.push_back(triangle_id(first + i, kUpperTriangle));
+      if (flags[i] & kLowerTriangle) boundary.push_back(triangle_id(first + i, kLowerTriangle));
+    }
+  }
 }
 
 namespace {
@@ -104,10 +139,13 @@ bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance)
 
 bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
-  // for b's triangles near p is skipped.
-  if (b.border == nullptr || !may_see_point(b, p, depth_tolerance)) return false;
+  // for b's triangles near p is skipped. The border distances are compared first: they are small
+  // coarse maps, b's full depth image is the cache miss, and most tests end there (a keeps what
+  // it sees better).
+  if (b.border == nullptr || p.cell < 0) return false;
   const float mine = a.border_distance(a_x, a_y), theirs = b.border_distance(p.x, p.y);
-  return theirs > mine || (theirs == mine && b.camera < a.camera);
+  if (!(theirs > mine || (theirs == mine && b.camera < a.camera))) return false;
+  return may_see_point(b, p, depth_tolerance);
 }
 
 void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, BorderDistance& out) {

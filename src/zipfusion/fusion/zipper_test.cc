@@ -6,6 +6,7 @@
 #include <map>
 #include <numbers>
 #include <numeric>
+#include <random>
 #include <set>
 #include <functional>
 
@@ -157,6 +158,32 @@ TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
   EXPECT_LT(uncovered_share(interior, mesh, 0.005f), 0.002) << "holes in the zippered cylinder";
   const double true_area = 2 * std::numbers::pi * 0.15 * 1.2;
   EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.05);
+}
+
+TEST(Redundancy, BoundaryTrianglesAreThoseTheElementTestFinds) {
+  // A random bit matrix (none in the last row and column) with a depth box inside the image and
+  // one touching its corner: the row kernel and the element function must agree on every cell.
+  std::mt19937 random(7);
+  for (const PixelBox box : {PixelBox{3, 2, 37, 25}, PixelBox{0, 0, 40, 30}}) {
+    DepthMesh mesh;
+    mesh.width = 40;
+    mesh.height = 30;
+    mesh.depth_box = box;
+    mesh.triangles.assign(mesh.width * mesh.height, 0);
+    for (int v = box.v0; v < std::min(box.v1, mesh.height - 1); ++v) {
+      for (int u = box.u0; u < std::min(box.u1, mesh.width - 1); ++u) {
+        mesh.triangles[v * mesh.width + u] = random() % 5 == 0 ? static_cast<std::uint8_t>(random() % 3) : 3;
+      }
+    }
+    std::vector<int> expected;
+    for_each_triangle_id(mesh, [&](int id) {
+      if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) expected.push_back(id);
+    });
+    std::vector<int> found;
+    collect_boundary_triangles(mesh, found);
+    EXPECT_GT(expected.size(), 100u);
+    EXPECT_EQ(found, expected);
+  }
 }
 
 TEST(Zipper, PairsAreScheduledWithoutSharingACamera) {
