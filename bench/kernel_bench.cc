@@ -82,15 +82,28 @@ void BM_LookupColors(benchmark::State& state) {
 }
 BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
 
-// The border distance on pyramid level 1, as the zipper computes it.
+// The ownership scores on pyramid level 1, as the zipper computes them.
 void BM_BorderDistance(benchmark::State& state) {
   const Frame& f = frame();
   DepthMesh coarse;
   downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
-  BorderDistance border;
+  OwnershipScore border;
   for (auto _ : state) compute_border_distance(coarse, 1, 1, border);
 }
 BENCHMARK(BM_BorderDistance)->Unit(benchmark::kMillisecond);
+
+void BM_Smoothness(benchmark::State& state) {
+  const Frame& f = frame();
+  DepthMesh coarse;
+  downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
+  const ZipperOptions options;
+  OwnershipScore smoothness;
+  for (auto _ : state) {
+    compute_smoothness(coarse, subsampled_intrinsics(f.rig.cameras[0].depth_intrinsics, 1), 1, (options.smoothness_window_px >> 1) | 1,
+                       static_cast<float>(options.smoothness_exponent), smoothness);
+  }
+}
+BENCHMARK(BM_Smoothness)->Unit(benchmark::kMillisecond);
 
 void BM_DownsampleMesh(benchmark::State& state) {
   const Frame& f = frame();

@@ -23,7 +23,7 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_GT(report["decode_ms"]["median"].get<double>(), 0);
   std::map<std::string, nlohmann::json> configs;
   for (const auto& c : report["configs"]) configs[c["name"]] = c;
-  ASSERT_EQ(configs.size(), 7u);
+  ASSERT_EQ(configs.size(), 8u);
   for (const auto& [name, c] : configs) {
     SCOPED_TRACE(name);
     const double total = c["ms"]["total"]["median"];
@@ -41,6 +41,8 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_GT(configs["zipper"]["ms"]["clipping"]["median"].get<double>(), 0);
   EXPECT_LT(configs["zipper"]["triangles"].get<double>(), configs["separate"]["triangles"].get<double>());
   EXPECT_EQ(configs["zipper 1 thread"]["triangles"], configs["zipper"]["triangles"]);
+  EXPECT_EQ(configs["zipper border ownership"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_NE(configs["zipper border ownership"]["triangles"], configs["zipper"]["triangles"]);
   EXPECT_GT(configs["zipper+separable filter"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_EQ(report["soak"]["frames"], 3);
   EXPECT_EQ(report["soak"]["early_frames"], 3);

@@ -146,6 +146,10 @@ void run_bench(const BenchArgs& args) {
       {"separate+filter", options(ReconstructMode::kSeparate, true)},
       {"separate", options(ReconstructMode::kSeparate, false)},
   };
+  // Unfiltered, ownership by smoothness (the default) against by border distance (the default
+  // with the filter): quality for time.
+  configs.push_back({"zipper border ownership", options(ReconstructMode::kZipper, false)});
+  configs.back().options.zipper.ownership = Ownership::kBorder;
   configs.push_back({"zipper+separable filter", options(ReconstructMode::kZipper, true)});
   configs.back().options.filter.separable = true;
   configs.push_back({"zipper 1 thread", options(ReconstructMode::kZipper, false)});

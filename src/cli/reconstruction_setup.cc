@@ -42,7 +42,18 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
       ->capture_default_str();
   cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
-  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Holes up to 2*this+1 pixels wide are not borders when judging which camera sees better")
+  cmd->add_option("--ownership", o.zipper.ownership,
+                  "Which camera keeps a surface two see: the smoother one (unfiltered depth: less noise), the one seeing it farther from its "
+                  "border (more frontally), or auto (smoothness without the filter, border with it)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, Ownership>{{"auto", Ownership::kAuto}, {"border", Ownership::kBorder},
+                                                                            {"smoothness", Ownership::kSmoothness}}))
+      ->capture_default_str();
+  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Border ownership: holes up to 2*this+1 pixels wide are not borders")
+      ->capture_default_str();
+  cmd->add_option("--smoothness-window", o.zipper.smoothness_window_px, "Smoothness ownership: compared over windows this wide, pixels")
+      ->capture_default_str();
+  cmd->add_option("--smoothness-exponent", o.zipper.smoothness_exponent,
+                  "Smoothness ownership: exponent of the area ratio, how much a smoother surface outweighs a mesh's border")
       ->capture_default_str();
   cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
       ->capture_default_str();
@@ -64,7 +75,10 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"clipping_distance_m", options.zipper.clipping_distance_m},
           {"max_seam_edge_m", options.zipper.max_seam_edge_m},
           {"min_overlap_share", options.zipper.min_overlap_share},
+          {"ownership", options.zipper.ownership == Ownership::kAuto ? "auto" : options.zipper.ownership == Ownership::kBorder ? "border" : "smoothness"},
           {"hole_closing_px", options.zipper.hole_closing_px},
+          {"smoothness_window_px", options.zipper.smoothness_window_px},
+          {"smoothness_exponent", options.zipper.smoothness_exponent},
           {"threads", options.num_threads}};
 }
 

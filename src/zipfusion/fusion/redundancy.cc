@@ -139,16 +139,16 @@ bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance)
 
 bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance) {
   // Where b sees another surface, in front or behind, it owns nothing at p, and the costly search
-  // for b's triangles near p is skipped. The border distances are compared first: they are small
+  // for b's triangles near p is skipped. The ownership scores are compared first: they are small
   // coarse maps, b's full depth image is the cache miss, and most tests end there (a keeps what
   // it sees better).
-  if (b.border == nullptr || p.cell < 0) return false;
-  const float mine = a.border_distance(a_x, a_y), theirs = b.border_distance(p.x, p.y);
+  if (b.ownership == nullptr || p.cell < 0) return false;
+  const float mine = a.score_at(a_x, a_y), theirs = b.score_at(p.x, p.y);
   if (!(theirs > mine || (theirs == mine && b.camera < a.camera))) return false;
   return may_see_point(b, p, depth_tolerance);
 }
 
-void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, BorderDistance& out) {
+void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out) {
   // Only the box around the cells with triangles is transformed (a person fills a fraction of a
   // depth image), padded so that the closing inside it comes out as on the whole image.
   out.width = mesh.width;
@@ -176,6 +176,63 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
     const float* d = distance.ptr<float>(y);
     const int base = (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) out.cells[base + x] = mesh.triangles[base + x] ? d[x] * pixels_per_cell : 0.0f;
+  }
+}
+
+void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, OwnershipScore& out) {
+  out.width = mesh.width;
+  out.height = mesh.height;
+  out.level = level;
+  out.cells.assign(static_cast<size_t>(mesh.width) * mesh.height, 0.0f);
+  const PixelBox depth_box = mesh.box();
+  if (depth_box.empty()) return;
+  // Only the box around the depth (a person fills a fraction of a depth image) is processed,
+  // padded so that the window sums inside it come out as on the whole image.
+  constexpr int kSmoothRadius = 2;  // the averaged depth: 5×5 cells
+  const int pad = window_cells / 2 + kSmoothRadius + 1;
+  const cv::Rect box(cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
+                     cv::Point(std::min(mesh.width, depth_box.u1 + pad), std::min(mesh.height, depth_box.v1 + pad)));
+  cv::Mat depth(box.height, box.width, CV_32F), valid(box.height, box.width, CV_32F);
+  for (int y = 0; y < box.height; ++y) {
+    const float* row = mesh.depth.data() + (box.y + y) * mesh.width + box.x;
+    float* z = depth.ptr<float>(y);
+    float* w = valid.ptr<float>(y);
+    for (int x = 0; x < box.width; ++x) {
+      z[x] = row[x];
+      w[x] = row[x] > 0 ? 1.0f : 0.0f;
+    }
+  }
+  cv::Mat depth_sum, valid_sum;
+  const cv::Size smooth_window(2 * kSmoothRadius + 1, 2 * kSmoothRadius + 1);
+  cv::boxFilter(depth, depth_sum, CV_32F, smooth_window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  cv::boxFilter(valid, valid_sum, CV_32F, smooth_window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  const cv::Mat smooth_depth = depth_sum / cv::max(valid_sum, 1.0f);
+  cv::Mat area(box.height, box.width, CV_32F, 0.0f), smooth_area(box.height, box.width, CV_32F, 0.0f);
+  for (int y = 0; y + 1 < box.height; ++y) {
+    const std::uint8_t* bits = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
+    const float *z0 = depth.ptr<float>(y), *z1 = depth.ptr<float>(y + 1);
+    const float *s0 = smooth_depth.ptr<float>(y), *s1 = smooth_depth.ptr<float>(y + 1);
+    float* a = area.ptr<float>(y);
+    float* sa = smooth_area.ptr<float>(y);
+    for (int x = 0; x + 1 < box.width; ++x) {
+      if (!bits[x]) continue;
+      const int u = box.x + x, v = box.y + y;
+      a[x] = cell_triangle_area(k, u, v, bits[x], z0[x], z0[x + 1], z1[x], z1[x + 1]);
+      sa[x] = cell_triangle_area(k, u, v, bits[x], s0[x], s0[x + 1], s1[x], s1[x + 1]);
+    }
+  }
+  const cv::Size window(window_cells, window_cells);
+  cv::boxFilter(area, area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  cv::boxFilter(smooth_area, smooth_area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  for (int y = 0; y < box.height; ++y) {
+    const float* a = area.ptr<float>(y);
+    const float* sa = smooth_area.ptr<float>(y);
+    const int base = (box.y + y) * mesh.width + box.x;
+    for (int x = 0; x < box.width; ++x) {
+      // No sheet is smoother than its average: a ratio above 1 (rounding, depths mixed across a
+      // discontinuity by the average) counts as 1.
+      if (mesh.triangles[base + x] && a[x] > 0) out.cells[base + x] = std::pow(std::min(1.0f, sa[x] / a[x]), exponent);
+    }
   }
 }
 

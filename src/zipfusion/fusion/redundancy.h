@@ -11,15 +11,14 @@
 //! A, then one of B, and repeats until neither changes.
 //!
 //! "Sees it better" goes beyond the paper, whose test is only "any triangle of B within d_r":
-//! a mesh's triangles far inside its own coverage (in pixels from its silhouette or a large hole)
-//! are seen frontally and near, those at its border at grazing angles. That distance
-//! (`BorderDistance`, computed once per frame with small holes closed) is compared at the same
-//! point in both images, and the mesh with the larger one keeps the surface; ties go to the lower camera index. With the paper's test the
-//! meshes eat into the overlap from both sides and stop d_r apart; where both end at the same
-//! place (a silhouette both see, or one camera seeing all the other sees) each border is redundant
-//! against the other's next ring and the two peel each other away. With ownership the overlap is
-//! split where both see equally well, the meshes meet there with no gap, and one mesh is never
-//! removed where the other does not take over.
+//! each camera has a score of how well it sees each point (`OwnershipScore`: how far inside its
+//! own coverage the point is, or how smooth its surface is there), compared at the same point in
+//! both images; the larger keeps the surface, ties to the lower camera index. With the paper's
+//! test the meshes eat into the overlap from both sides and stop d_r apart; where both end at the
+//! same place (a silhouette both see, or one camera seeing all the other sees) each border is
+//! redundant against the other's next ring and the two peel each other away. With ownership the
+//! overlap is split where both see equally well, the meshes meet there with no gap, and one mesh
+//! is never removed where the other does not take over.
 
 #include <cmath>
 #include <cstdint>
@@ -31,32 +30,56 @@
 
 namespace zipfusion {
 
-//! How deep inside its own coverage a camera sees each point of its image: the distance from the
-//! border of its mesh (its silhouette, or a hole wider than the closing), in full-resolution
-//! pixels. Large where the camera sees the surface frontally and near, small at grazing angles;
-//! the camera with the larger value owns a surface that two cameras see. Computed once per frame
-//! on one (coarse) pyramid level and sampled bilinearly, so it is continuous over the image and
-//! the same at every level.
-struct BorderDistance {
-  std::vector<float> cells;  // per cell of `level`: distance of the cell's centre, full-resolution pixels; 0 off the mesh
+//! How well a camera sees each point of its image, for ownership: where two cameras see one
+//! surface, the one with the larger score keeps it. Computed once per frame on one (coarse)
+//! pyramid level and sampled bilinearly, so it is continuous over the image and the same at every
+//! level; 0 off the mesh, so it falls to 0 over a mesh's last cell. Two scores (`Ownership`):
+//! - *border*: the distance from the border of the mesh (its silhouette, or a hole wider than the
+//!   closing), in full-resolution pixels: large where the camera sees the surface frontally and
+//!   near, small at grazing angles;
+//! - *smoothness*: (A_smooth / A)^exponent, where A is the area of the camera's triangles in a
+//!   window and A_smooth that of the same triangles on the locally averaged depth. Noise along a
+//!   camera's rays roughens its sheet and raises its area: it is strongest where the camera sees
+//!   the surface frontally, so unfiltered, the camera that sees a surface more obliquely measures
+//!   it more smoothly, up to the grazing angles and mixed pixels at its silhouette.
+struct OwnershipScore {
+  std::vector<float> cells;  // per cell of `level`; 0 where the cell holds no triangle
   int width = 0;
   int height = 0;
   int level = 0;
 };
 
-//! Fills `out` from `mesh`, a view at `level`: the distance transform of its cells with triangles,
-//! after closing holes up to 2·close_cells+1 cells wide (noise dropouts do not make a border).
-void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, BorderDistance& out);
+//! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its
+//! cells with triangles, after closing holes up to 2·close_cells+1 cells wide (noise dropouts do
+//! not make a border).
+void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out);
 
-//! Element function: the border distance at full-resolution pixel coordinates (x, y), bilinear
-//! between cell centres; 0 outside the image.
-inline float border_distance_at(const BorderDistance& d, float x, float y) {
-  const float scale = 1.0f / static_cast<float>(1 << d.level);
+//! Fills `out` with the smoothness score of `mesh`, a view at `level` with intrinsics `k` (of that
+//! level): areas summed over windows of window_cells × window_cells cells (odd), the ratio raised
+//! to `exponent`, which sets how much a smoother surface outweighs the fall of the score to 0 over
+//! a mesh's last cell (docs/design.md).
+void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, OwnershipScore& out);
+
+//! Element function: the summed area (square metres) of the triangles `bits` of cell (u, v),
+//! whose corners (u, v), (u+1, v), (u, v+1), (u+1, v+1) lie at depths z00, z10, z01, z11.
+inline float cell_triangle_area(const Intrinsics& k, int u, int v, std::uint8_t bits, float z00, float z10, float z01, float z11) {
+  auto point = [&](int du, int dv, float z) { return unproject(k, static_cast<float>(u + du), static_cast<float>(v + dv), z); };
+  const Eigen::Vector3f p = point(0, 0, z00), r = point(1, 0, z10), b = point(0, 1, z01), d = point(1, 1, z11);
+  float area = 0;
+  if (bits & kUpperTriangle) area += 0.5f * (b - p).cross(r - p).norm();
+  if (bits & kLowerTriangle) area += 0.5f * (b - r).cross(d - r).norm();
+  return area;
+}
+
+//! Element function: the score at full-resolution pixel coordinates (x, y), bilinear between cell
+//! centres; 0 outside the image.
+inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
+  const float scale = 1.0f / static_cast<float>(1 << q.level);
   const float cx = x * scale - 0.5f, cy = y * scale - 0.5f;
-  if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(d.width) && cy < static_cast<float>(d.height))) return 0.0f;
+  if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(q.width) && cy < static_cast<float>(q.height))) return 0.0f;
   const int u = static_cast<int>(std::floor(cx)), v = static_cast<int>(std::floor(cy));
   const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
-  auto at = [&](int i, int j) { return i >= 0 && j >= 0 && i < d.width && j < d.height ? d.cells[j * d.width + i] : 0.0f; };
+  auto at = [&](int i, int j) { return i >= 0 && j >= 0 && i < q.width && j < q.height ? q.cells[j * q.width + i] : 0.0f; };
   const float top = at(u, v) + fu * (at(u + 1, v) - at(u, v));
   const float bottom = at(u, v + 1) + fu * (at(u + 1, v + 1) - at(u, v + 1));
   return top + fv * (bottom - top);
@@ -67,14 +90,14 @@ struct MeshView {
   DepthMesh* mesh = nullptr;
   Intrinsics intrinsics;       // of this level (focal length and centre scaled by 2^-level)
   Rigid3f depth_from_world = Rigid3f::Identity();
-  const BorderDistance* border = nullptr;  // ownership; null: this view never owns what another sees
+  const OwnershipScore* ownership = nullptr;  // null: this view never owns what another sees
   int camera = 0;                          // breaks ownership ties
   int level = 0;                           // pyramid level: cells are 2^level pixels
 
-  //! The border distance at (x, y) in this level's pixel coordinates.
-  float border_distance(float x, float y) const {
+  //! The ownership score at (x, y) in this level's pixel coordinates.
+  float score_at(float x, float y) const {
     const float scale = static_cast<float>(1 << level);
-    return border != nullptr ? border_distance_at(*border, x * scale, y * scale) : 0.0f;
+    return ownership != nullptr ? ownership_score_at(*ownership, x * scale, y * scale) : 0.0f;
   }
 };
 
@@ -207,7 +230,7 @@ bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance)
 
 //! Element function: does `b` see the surface at point p, which lies at (a_x, a_y) in a's image
 //! (this level's pixel coordinates), better than `a`? `b` must see p (a pixel next to p's
-//! projection has p's depth within `depth_tolerance`, or no depth), and its border distance there
+//! projection has p's depth within `depth_tolerance`, or no depth), and its ownership score there
 //! must exceed a's (ties to the lower camera index). Both meshes evaluate the same point the same
 //! way, so they meet without a gap. `p` is the point projected into b.
 bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance);

@@ -14,11 +14,12 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 
-// Pyramid level of the border distance that decides ownership. Level 1 (320×240 for a Kinect)
-// scored as the per-level distances did (samba-4cam: accuracy, completeness and components alike;
+// Pyramid level of the ownership score. Level 1 (320×240 for a Kinect): for the border distance
+// it scored as per-level distances did (samba-4cam: accuracy, completeness and components alike;
 // the 3-camera ring of zipper_quality_test kept its 2 large components) at a quarter of the cost
-// of level 0; level 2 split that ring into 5 pieces.
-constexpr int kBorderLevel = 1;
+// of level 0, and level 2 split that ring into 5 pieces; for the smoothness, level 0 left the
+// area on samba-4cam as it was but doubled the seams' (docs/design.md).
+constexpr int kScoreLevel = 1;
 
 }  // namespace
 
@@ -28,6 +29,8 @@ void ZipperOptions::validate() const {
   if (!(coarse_shrink > 0 && coarse_shrink <= 1)) throw InvalidInput("coarse-shrink: must be in (0, 1]");
   if (!(clipping_distance_m > 0 && clipping_distance_m < 0.5)) throw InvalidInput("clipping-distance: must be in (0, 0.5) metres");
   if (hole_closing_px < 0 || hole_closing_px > 32) throw InvalidInput("hole-closing: must be in [0, 32] pixels");
+  if (smoothness_window_px < 1 || smoothness_window_px > 256) throw InvalidInput("smoothness-window: must be in [1, 256] pixels");
+  if (!(smoothness_exponent > 0 && smoothness_exponent <= 64)) throw InvalidInput("smoothness-exponent: must be in (0, 64]");
   if (!(max_seam_edge_m > 0 && max_seam_edge_m < 0.5)) throw InvalidInput("max-seam-edge: must be in (0, 0.5) metres");
   if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("min-overlap: must be in [0, 1)");
 }
@@ -71,17 +74,23 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.levels.resize(levels);
     s.bits_before.resize(levels);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
-    views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.border, c, 0};
+    views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.ownership, c, 0};
     for (int level = 1; level <= levels; ++level) {
       downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
-      views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.border, c,
+      views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.ownership, c,
                          level};
     }
-    // Ownership at every level from one border distance, on level 1 of the full-resolution depth
-    // whatever level of detail the meshes come from.
-    const int border_level = std::min(levels, std::max(0, kBorderLevel - options.depth_level));
-    compute_border_distance(*views[c][border_level].mesh, border_level, std::max(1, options.hole_closing_px >> border_level), s.border);
+    // Ownership at every level from one score, on level 1 of the full-resolution depth whatever
+    // level of detail the meshes come from.
+    const int score_level = std::min(levels, std::max(0, kScoreLevel - options.depth_level));
+    if (options.ownership == Ownership::kSmoothness) {
+      compute_smoothness(*views[c][score_level].mesh, views[c][score_level].intrinsics, score_level,
+                         std::max(1, options.smoothness_window_px >> score_level) | 1, static_cast<float>(options.smoothness_exponent),
+                         s.ownership);
+    } else {
+      compute_border_distance(*views[c][score_level].mesh, score_level, std::max(1, options.hole_closing_px >> score_level), s.ownership);
+    }
   }, options.num_threads);
   result.stats.pyramid_ms = ms_since(t);
 

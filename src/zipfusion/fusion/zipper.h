@@ -18,12 +18,22 @@
 
 namespace zipfusion {
 
+//! Which camera keeps a surface that two see (redundancy.h, OwnershipScore).
+enum class Ownership {
+  kAuto,        // smoothness on unfiltered depth, border on filtered (resolved by the reconstruction; here: border)
+  kBorder,      // the camera that sees it farther inside its own coverage (more frontally)
+  kSmoothness,  // the camera whose own surface is smoother there (less noise)
+};
+
 struct ZipperOptions {
   double redundancy_distance_m = 0.03;  // d_r (III-C): triangles closer than this to another camera's are redundant
   int coarse_levels = 2;                // L (III-C2): FRBR starts on depth maps downsampled by 2^L
   double coarse_shrink = 0.7;           // β (III-C2): d_r at level l is β^l·d_r
   double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
-  int hole_closing_px = 3;              // holes up to 2·this+1 pixels wide do not count as borders for ownership
+  Ownership ownership = Ownership::kAuto;
+  int hole_closing_px = 3;              // border: holes up to 2·this+1 pixels wide do not count as borders
+  int smoothness_window_px = 26;        // smoothness: compared over windows this wide (pixels)
+  double smoothness_exponent = 12;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
   double min_overlap_share = 0.002;     // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
@@ -64,7 +74,7 @@ struct ZipperResult {
 struct ZipperScratch {
   struct Camera {
     std::vector<DepthMesh> levels;                       // levels 1..L (index level−1)
-    BorderDistance border;                               // on the coarsest level, for ownership at every level
+    OwnershipScore ownership;                            // on one coarse level, for ownership at every level
     std::vector<std::vector<std::uint8_t>> bits_before;  // per level 1..L, the SDC bits before any removal
     FrbrScratch frbr;
     SeamScratch seam;

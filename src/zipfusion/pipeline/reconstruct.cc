@@ -30,6 +30,7 @@ ReconstructOptions at_depth_level(ReconstructOptions options) {
   options.filter.spatial_sigma_px = std::max(0.5, options.filter.spatial_sigma_px / scale);
   options.filter.radius_px = std::max(1, static_cast<int>(options.filter.radius_px / scale));
   options.zipper.hole_closing_px >>= level;
+  options.zipper.smoothness_window_px = std::max(1, options.zipper.smoothness_window_px >> level);
   options.zipper.coarse_levels = std::max(0, options.zipper.coarse_levels - level);
   options.zipper.depth_level = level;
   return options;
@@ -113,6 +114,9 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
       if (active[c]) inputs[c] = {&cameras_[c].mesh, &cameras_[c].colors, &rig_.cameras[c]};
     }
     ZipperOptions zipper = options_.zipper;
+    // Unfiltered, noise decides which of two layers is the better measurement; filtered, the
+    // layers are about as smooth and the one seen more frontally (finer, better colour) wins.
+    if (zipper.ownership == Ownership::kAuto) zipper.ownership = options_.bilateral ? Ownership::kBorder : Ownership::kSmoothness;
     zipper.sdc_max_depth_jump_m = options_.sdc.max_depth_jump_m;
     zipper.num_threads = threads;
     ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_);
