@@ -22,6 +22,24 @@ __attribute__((target_clones("avx2", "default"))) void accumulate_taps(const flo
   }
 }
 
+// The symmetric half of the square window: the weight of pixels p and q is the same seen from
+// either (spatial and range terms are symmetric), so each pair is weighed once and added to both
+// sums. `p` and `q` are `count` pixels of two different rows (q's already shifted by the offset);
+// their sums must not overlap.
+__attribute__((target_clones("avx2", "default"))) void accumulate_pairs(const float* __restrict p, const float* __restrict q, int count,
+                                                                        float spatial, float inv_two_range_sigma2,
+                                                                        float* __restrict p_weights, float* __restrict p_values,
+                                                                        float* __restrict q_weights, float* __restrict q_values) {
+  for (int i = 0; i < count; ++i) {
+    // bilateral_weight masks a q without depth; a p without depth must not reach q's sums either.
+    const float w = static_cast<float>(p[i] > 0.0f) * bilateral_weight(p[i], q[i], spatial, inv_two_range_sigma2);
+    p_weights[i] += w;
+    p_values[i] += w * q[i];
+    q_weights[i] += w;
+    q_values[i] += w * p[i];
+  }
+}
+
 // The columns [first, last] of a row between its first and last pixel with depth (first > last:
 // none); pixels outside have no depth and so no output.
 struct RowSpan {
@@ -60,6 +78,87 @@ void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, 
     const float centre = centre_row[span.first + i];
     out_row[span.first + i] = centre > 0 ? sums.values[i] / sums.weights[i] : 0.0f;
   }
+}
+
+// Rows per block of the square window's pair sums: fixed, so the order in which a pixel's sums
+// are formed, and so the result, does not depend on the number of threads.
+constexpr int kBlockRows = 32;
+
+// The square window with every pair of pixels weighed once (about half the exponentials of
+// gathering each pixel's 169 taps): each block of rows forms, for its rows v, the taps within
+// row v (gathered, 2r+1 of them) and the pairs between row v and the r rows below (both sums);
+// pairs reaching below the block go to its r overflow rows, added to the next block's first rows
+// at the end.
+void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch, int num_threads) {
+  const int width = depth_m.width, height = depth_m.height, r = kernel.radius, side = 2 * r + 1;
+  const float inv = kernel.inv_two_range_sigma2;
+  const int blocks = (height + kBlockRows - 1) / kBlockRows;
+  const size_t plane = static_cast<size_t>(kBlockRows + r) * width;  // one block's weight (or value) sums
+  scratch.width = width;
+  scratch.height = 0;  // not an image here: the blocks' sums
+  scratch.data.resize(2 * plane * blocks + height * 2);
+  float* spans = scratch.data.data() + 2 * plane * blocks;  // per row: first and last column with depth (exact as floats)
+  auto row_of = [&](int v) { return depth_m.data.data() + static_cast<size_t>(v) * width; };
+  for (int v = 0; v < height; ++v) {
+    const RowSpan span = depth_span(row_of(v), width);
+    spans[2 * v] = static_cast<float>(span.first);
+    spans[2 * v + 1] = static_cast<float>(span.last);
+  }
+  auto span_of = [&](int v) { return RowSpan{static_cast<int>(spans[2 * v]), static_cast<int>(spans[2 * v + 1])}; };
+  const int threads = std::max(1, std::min(num_threads, blocks));
+  parallel_for(0, blocks, [&](int block) {
+    float* weights = scratch.data.data() + 2 * plane * block;
+    float* values = weights + plane;
+    std::fill(weights, weights + 2 * plane, 0.0f);
+    const int first_row = block * kBlockRows, end_row = std::min(height, first_row + kBlockRows);
+    for (int v = first_row; v < end_row; ++v) {
+      const RowSpan span = span_of(v);
+      if (span.first > span.last) continue;
+      const float* row = row_of(v);
+      float* row_weights = weights + static_cast<size_t>(v - first_row) * width;
+      float* row_values = values + static_cast<size_t>(v - first_row) * width;
+      // Within the row (the centre included): gathered, as the pairs would alias.
+      for (int dx = -r; dx <= r; ++dx) {
+        const int lo = std::max(span.first, -dx), hi = std::min(span.last, width - 1 - dx);
+        if (lo <= hi) accumulate_taps(row + lo, row + lo + dx, hi - lo + 1, kernel.spatial[r * side + dx + r], inv, row_weights + lo, row_values + lo);
+      }
+      for (int dy = 1; dy <= r && v + dy < height; ++dy) {
+        const RowSpan below = span_of(v + dy);
+        if (below.first > below.last) continue;
+        const float* below_row = row_of(v + dy);
+        float* below_weights = weights + static_cast<size_t>(v + dy - first_row) * width;
+        float* below_values = values + static_cast<size_t>(v + dy - first_row) * width;
+        for (int dx = -r; dx <= r; ++dx) {
+          const int lo = std::max(span.first, below.first - dx), hi = std::min(span.last, below.last - dx);
+          if (lo > hi) continue;
+          accumulate_pairs(row + lo, below_row + lo + dx, hi - lo + 1, kernel.spatial[(dy + r) * side + dx + r], inv, row_weights + lo,
+                           row_values + lo, below_weights + lo + dx, below_values + lo + dx);
+        }
+      }
+    }
+  }, threads);
+  parallel_for(0, blocks, [&](int block) {
+    const float* weights = scratch.data.data() + 2 * plane * block;
+    const float* values = weights + plane;
+    const int first_row = block * kBlockRows, end_row = std::min(height, first_row + kBlockRows);
+    for (int v = first_row; v < end_row; ++v) {
+      const float* row = row_of(v);
+      float* out_row = out.data.data() + static_cast<size_t>(v) * width;
+      const size_t own = static_cast<size_t>(v - first_row) * width;
+      // The previous block's overflow rows hold this row's pairs with the r rows above the block.
+      const bool overflow = block > 0 && v - first_row < r;
+      const size_t spill = static_cast<size_t>(kBlockRows + v - first_row) * width;
+      const float* previous = overflow ? scratch.data.data() + 2 * plane * (block - 1) : nullptr;
+      for (int u = 0; u < width; ++u) {
+        float w = weights[own + u], z = values[own + u];
+        if (overflow) {
+          w += previous[spill + u];
+          z += previous[plane + spill + u];
+        }
+        out_row[u] = row[u] > 0 ? z / w : 0.0f;
+      }
+    }
+  }, threads);
 }
 
 }  // namespace
@@ -105,14 +204,7 @@ void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel
   };
   resize(out);
   if (!kernel.separable) {
-    for_rows([&](int v, RowSums& sums) {
-      filter_row(row_of(depth_m, v), width, inv, sums, out_row_of(out, v), [&](auto&& add) {
-        for (int dy = std::max(-r, -v); dy <= std::min(r, height - 1 - v); ++dy) {
-          const float* spatial_row = kernel.spatial.data() + (dy + r) * (2 * r + 1) + r;
-          for (int dx = -r; dx <= r; ++dx) add(row_of(depth_m, v + dy), dx, spatial_row[dx]);
-        }
-      });
-    });
+    filter_square(depth_m, kernel, out, scratch, num_threads);
     return;
   }
   // A row pass into `scratch`, then a column pass over it.
