@@ -112,12 +112,15 @@ void BM_DownsampleMesh(benchmark::State& state) {
 }
 BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
 
-// All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four cameras; Arg = threads.
+// All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four unfiltered cameras;
+// first Arg = threads, second = ownership (0 border, 1 smoothness: the default for unfiltered
+// depth).
 void BM_ZipperFourCameras(benchmark::State& state) {
   const Frame& f = frame();
   ZipperScratch scratch;
   std::vector<DepthMesh> meshes;
-  const ZipperOptions options{.num_threads = static_cast<int>(state.range(0))};
+  const ZipperOptions options{.ownership = state.range(1) ? Ownership::kSmoothness : Ownership::kBorder,
+                              .num_threads = static_cast<int>(state.range(0))};
   for (auto _ : state) {
     state.PauseTiming();
     meshes = f.meshes;  // zippering clears bits: start each iteration from the same meshes
@@ -127,7 +130,7 @@ void BM_ZipperFourCameras(benchmark::State& state) {
     benchmark::DoNotOptimize(zipper_meshes(cameras, options, scratch));
   }
 }
-BENCHMARK(BM_ZipperFourCameras)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ZipperFourCameras)->Args({1, 0})->Args({2, 0})->Args({1, 1})->Args({2, 1})->UseRealTime()->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace zipfusion
