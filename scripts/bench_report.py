@@ -53,7 +53,9 @@ def main(folder):
             f"--repeat {samba['repeat']} --soak {(samba.get('soak') or {}).get('frames', 0)}`: {samba['cameras']} cameras, depth {samba['depth_size']}. "
             f"Decoding the PNG depth and JPEG colour of a frame set (cameras in parallel): {ms(samba['decode_ms'])} ms.", ""]
     out += stage_table(samba, ["zipper+filter", "zipper+separable filter", "zipper", "zipper border ownership", "separate+filter", "separate"])
-    out += ["", "Targets (issue 6): total ≤ 16.7 ms without the filter, ≤ 33 ms with it. The paper's Table IV figures were lost in "
+    out += ["", "Without the filter (\"zipper\") ownership is by smoothness, the default there (`--ownership auto`); "
+            "\"zipper border ownership\" is the same with `--ownership border`, the default with the filter (docs/design.md).",
+            "", "Targets (issue 6): total ≤ 16.7 ms without the filter, ≤ 33 ms with it. The paper's Table IV figures were lost in "
             "the text extraction; its whole pipeline ran at 7.3 fps (137 ms) with CUDA and four threads.", ""]
 
     one = config(samba, "zipper 1 thread")
