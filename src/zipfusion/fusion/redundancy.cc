@@ -148,18 +148,27 @@ bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, 
   return may_see_point(b, p, depth_tolerance);
 }
 
-void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out) {
-  // Only the box around the cells with triangles is transformed (a person fills a fraction of a
-  // depth image), padded so that the closing inside it comes out as on the whole image.
+namespace {
+
+// Resets `out` to 0 over `mesh`'s cells at `level` and returns the box the score is computed in:
+// the mesh's depth box (a person fills a fraction of a depth image) padded by `pad` cells, so that
+// neighbourhood operations inside it come out as on the whole image; empty without depth.
+cv::Rect start_score(const DepthMesh& mesh, int level, int pad, OwnershipScore& out) {
   out.width = mesh.width;
   out.height = mesh.height;
   out.level = level;
   out.cells.assign(static_cast<size_t>(mesh.width) * mesh.height, 0.0f);
   const PixelBox depth_box = mesh.box();
-  if (depth_box.empty()) return;
-  const int pad = close_cells + 1;
-  const cv::Rect box(cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
-                     cv::Point(std::min(mesh.width, depth_box.u1 + pad), std::min(mesh.height, depth_box.v1 + pad)));
+  if (depth_box.empty()) return {};
+  return {cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
+          cv::Point(std::min(mesh.width, depth_box.u1 + pad), std::min(mesh.height, depth_box.v1 + pad))};
+}
+
+}  // namespace
+
+void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out) {
+  const cv::Rect box = start_score(mesh, level, close_cells + 1, out);
+  if (box.empty()) return;
   cv::Mat mask(box.height, box.width, CV_8UC1);
   for (int y = 0; y < box.height; ++y) {
     const std::uint8_t* row = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
@@ -180,18 +189,9 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
 }
 
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, OwnershipScore& out) {
-  out.width = mesh.width;
-  out.height = mesh.height;
-  out.level = level;
-  out.cells.assign(static_cast<size_t>(mesh.width) * mesh.height, 0.0f);
-  const PixelBox depth_box = mesh.box();
-  if (depth_box.empty()) return;
-  // Only the box around the depth (a person fills a fraction of a depth image) is processed,
-  // padded so that the window sums inside it come out as on the whole image.
   constexpr int kSmoothRadius = 2;  // the averaged depth: 5×5 cells
-  const int pad = window_cells / 2 + kSmoothRadius + 1;
-  const cv::Rect box(cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
-                     cv::Point(std::min(mesh.width, depth_box.u1 + pad), std::min(mesh.height, depth_box.v1 + pad)));
+  const cv::Rect box = start_score(mesh, level, window_cells / 2 + kSmoothRadius + 1, out);
+  if (box.empty()) return;
   cv::Mat depth(box.height, box.width, CV_32F), valid(box.height, box.width, CV_32F);
   for (int y = 0; y < box.height; ++y) {
     const float* row = mesh.depth.data() + (box.y + y) * mesh.width + box.x;
