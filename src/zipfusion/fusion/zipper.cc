@@ -21,6 +21,42 @@ double ms_since(Clock::time_point t) { return std::chrono::duration<double, std:
 // area on samba-4cam as it was but doubled the seams' (docs/design.md).
 constexpr int kScoreLevel = 1;
 
+// The number of triangles in `count` cells' bits.
+__attribute__((target_clones("avx2", "default"))) int count_triangles_row(const std::uint8_t* bits, int count) {
+  int triangles = 0;
+  for (int i = 0; i < count; ++i) triangles += (bits[i] & kUpperTriangle) + ((bits[i] & kLowerTriangle) >> 1);
+  return triangles;
+}
+
+// Marks the pixels u0..u1−1 of row v that a triangle uses: pixel p is vertex p of its own cell's
+// upper triangle, r of both triangles of the cell to its left, b of both of the cell above, and d
+// of the lower triangle of the cell above-left (triangle_pixels). The first column and row read
+// no cell outside the image.
+__attribute__((target_clones("avx2", "default"))) void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1,
+                                                                            std::uint8_t* used_row) {
+  const std::uint8_t* row = triangles + v * width;
+  const std::uint8_t* above = v > 0 ? row - width : nullptr;
+  int u = u0;
+  if (u == 0 && u < u1) {
+    used_row[0] = static_cast<std::uint8_t>(((row[0] & kUpperTriangle) | (above ? above[0] : 0)) != 0);
+    ++u;
+  }
+  if (above == nullptr) {
+    for (; u < u1; ++u) used_row[u] = static_cast<std::uint8_t>(((row[u] & kUpperTriangle) | row[u - 1]) != 0);
+    return;
+  }
+  for (; u < u1; ++u) {
+    used_row[u] = static_cast<std::uint8_t>(((row[u] & kUpperTriangle) | row[u - 1] | above[u] | (above[u - 1] & kLowerTriangle)) != 0);
+  }
+}
+
+// The number of used pixels among `count`.
+__attribute__((target_clones("avx2", "default"))) int count_used_row(const std::uint8_t* used, int count) {
+  int n = 0;
+  for (int i = 0; i < count; ++i) n += used[i];
+  return n;
+}
+
 }  // namespace
 
 void ZipperOptions::validate() const {
@@ -186,7 +222,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // edges between seam vertices need checking.
   t = Clock::now();
   TriangleMesh& mesh = result.mesh;
-  // Each camera's used pixels (by kept triangles or seams), numbered in pixel order.
+  // Each camera's used pixels (by kept triangles or seams) and triangles, counted.
   std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
@@ -194,24 +230,20 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     s.used.assign(depth_mesh.triangles.size(), 0);
     s.vertex_of_pixel.resize(depth_mesh.triangles.size());
+    const PixelBox box = depth_mesh.box();
     int triangles = 0;
-    for_each_triangle(depth_mesh, [&](const int* p) {
-      s.used[p[0]] = s.used[p[1]] = s.used[p[2]] = 1;
-      ++triangles;
-    });
+    for (int v = box.v0; v < box.v1; ++v) {
+      const int row = v * depth_mesh.width;
+      triangles += count_triangles_row(depth_mesh.triangles.data() + row + box.u0, box.u1 - box.u0);
+      mark_used_pixels_row(depth_mesh.triangles.data(), depth_mesh.width, v, box.u0, box.u1, s.used.data() + row);
+    }
     for (const Seam& seam : seams) {
       for (const PixelVertex& v : seam.vertices) {
         if (v.camera == c) s.used[v.pixel] = 1;
       }
     }
     int vertices = 0;
-    const PixelBox box = depth_mesh.box();
-    for (int v = box.v0; v < box.v1; ++v) {
-      for (int u = box.u0; u < box.u1; ++u) {
-        const int pixel = v * depth_mesh.width + u;
-        if (s.used[pixel]) s.vertex_of_pixel[pixel] = vertices++;
-      }
-    }
+    for (int v = box.v0; v < box.v1; ++v) vertices += count_used_row(s.used.data() + v * depth_mesh.width + box.u0, box.u1 - box.u0);
     vertex_count[c] = vertices;
     triangle_count[c] = triangles;
   }, options.num_threads);
@@ -228,17 +260,20 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   mesh.triangles.reserve(mesh.triangles.size() + seam_triangles);
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
-    const ZipperScratch::Camera& s = scratch.cameras[c];
+    ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     const int first = vertex_offset[c];
     const PixelBox box = depth_mesh.box();
+    // Used pixels numbered in pixel order, written as they are numbered.
+    int vertex = 0;
     for (int v = box.v0; v < box.v1; ++v) {
       for (int u = box.u0; u < box.u1; ++u) {
         const int pixel = v * depth_mesh.width + u;
         if (!s.used[pixel]) continue;
-        const int index = first + s.vertex_of_pixel[pixel];
-        mesh.positions[index] = depth_mesh.points[pixel];
-        mesh.colors[index] = cameras[c].colors ? (*cameras[c].colors)[pixel] : Rgb8{128, 128, 128};
+        s.vertex_of_pixel[pixel] = vertex;
+        mesh.positions[first + vertex] = depth_mesh.points[pixel];
+        mesh.colors[first + vertex] = cameras[c].colors ? (*cameras[c].colors)[pixel] : Rgb8{128, 128, 128};
+        ++vertex;
       }
     }
     Eigen::Vector3i* out = mesh.triangles.data() + triangle_offset[c];
