@@ -208,17 +208,19 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, i
   cv::boxFilter(valid, valid_sum, CV_32F, smooth_window, {-1, -1}, false, cv::BORDER_CONSTANT);
   const cv::Mat smooth_depth = depth_sum / cv::max(valid_sum, 1.0f);
   cv::Mat area(box.height, box.width, CV_32F, 0.0f), smooth_area(box.height, box.width, CV_32F, 0.0f);
+  std::vector<float> ray_x(box.width);  // (u − cx)/fx of the box's columns
+  for (int x = 0; x < box.width; ++x) ray_x[x] = static_cast<float>((box.x + x - k.cx) / k.fx);
   for (int y = 0; y + 1 < box.height; ++y) {
     const std::uint8_t* bits = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
     const float *z0 = depth.ptr<float>(y), *z1 = depth.ptr<float>(y + 1);
     const float *s0 = smooth_depth.ptr<float>(y), *s1 = smooth_depth.ptr<float>(y + 1);
+    const float y0 = static_cast<float>((box.y + y - k.cy) / k.fy), y1 = static_cast<float>((box.y + y + 1 - k.cy) / k.fy);
     float* a = area.ptr<float>(y);
     float* sa = smooth_area.ptr<float>(y);
     for (int x = 0; x + 1 < box.width; ++x) {
       if (!bits[x]) continue;
-      const int u = box.x + x, v = box.y + y;
-      a[x] = cell_triangle_area(k, u, v, bits[x], z0[x], z0[x + 1], z1[x], z1[x + 1]);
-      sa[x] = cell_triangle_area(k, u, v, bits[x], s0[x], s0[x + 1], s1[x], s1[x + 1]);
+      a[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], z0[x], z0[x + 1], z1[x], z1[x + 1]);
+      sa[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], s0[x], s0[x + 1], s1[x], s1[x + 1]);
     }
   }
   const cv::Size window(window_cells, window_cells);

@@ -60,11 +60,11 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
 //! a mesh's last cell (docs/design.md).
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, OwnershipScore& out);
 
-//! Element function: the summed area (square metres) of the triangles `bits` of cell (u, v),
-//! whose corners (u, v), (u+1, v), (u, v+1), (u+1, v+1) lie at depths z00, z10, z01, z11.
-inline float cell_triangle_area(const Intrinsics& k, int u, int v, std::uint8_t bits, float z00, float z10, float z01, float z11) {
-  auto point = [&](int du, int dv, float z) { return unproject(k, static_cast<float>(u + du), static_cast<float>(v + dv), z); };
-  const Eigen::Vector3f p = point(0, 0, z00), r = point(1, 0, z10), b = point(0, 1, z01), d = point(1, 1, z11);
+//! Element function: the summed area (square metres) of the triangles `bits` of a cell whose
+//! corners lie at depths z00 (top left), z10 (top right), z01 (bottom left) and z11 on the rays
+//! (x0, y0, 1), (x1, y0, 1), (x0, y1, 1), (x1, y1, 1), xi = (ui − cx)/fx, yi = (vi − cy)/fy.
+inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uint8_t bits, float z00, float z10, float z01, float z11) {
+  const Eigen::Vector3f p(x0 * z00, y0 * z00, z00), r(x1 * z10, y0 * z10, z10), b(x0 * z01, y1 * z01, z01), d(x1 * z11, y1 * z11, z11);
   float area = 0;
   if (bits & kUpperTriangle) area += 0.5f * (b - p).cross(r - p).norm();
   if (bits & kLowerTriangle) area += 0.5f * (b - r).cross(d - r).norm();
