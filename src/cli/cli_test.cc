@@ -97,6 +97,13 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   std::ifstream in(fs::path(zipper) / "stats.json");
   const nlohmann::json stats = nlohmann::json::parse(in);
   ASSERT_EQ(stats["frames"].size(), 2u);
+  // --ownership auto is resolved by the filter and recorded as used: border with the bilateral
+  // filter (the default), smoothness without a filter.
+  EXPECT_EQ(stats["options"]["ownership"], "border");
+  const std::string unfiltered = (dir_ / "unfiltered").string();
+  ASSERT_EQ(run("reconstruct " + capture + " --out " + unfiltered + " --frames 1:2 --filter none").exit_code, 0);
+  std::ifstream unfiltered_stats(fs::path(unfiltered) / "stats.json");
+  EXPECT_EQ(nlohmann::json::parse(unfiltered_stats)["options"]["ownership"], "smoothness");
   for (const auto& f : stats["frames"]) {
     EXPECT_EQ(f["cameras_used"], 4);
     EXPECT_GT(f["ms"]["total"].get<double>(), 0.0);

@@ -42,11 +42,10 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
       ->capture_default_str();
   cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
-  cmd->add_option("--ownership", o.zipper.ownership,
-                  "Which camera keeps a surface two see: the smoother one (unfiltered depth: less noise), the one seeing it farther from its "
-                  "border (more frontally), or auto (smoothness without the filter, border with it)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, Ownership>{{"auto", Ownership::kAuto}, {"border", Ownership::kBorder},
-                                                                            {"smoothness", Ownership::kSmoothness}}))
+  cmd->add_option("--ownership", args.ownership,
+                  "Which camera keeps a surface two see: the smoother one (smoothness: less noise), the one seeing it farther from its "
+                  "border (border: more frontally), or auto (smoothness without the filter, border with it)")
+      ->check(CLI::IsMember({"auto", "border", "smoothness"}))
       ->capture_default_str();
   cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Border ownership: holes up to 2*this+1 pixels wide are not borders")
       ->capture_default_str();
@@ -87,6 +86,9 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   options.bilateral = args.filter != "none";
   options.filter.separable = args.filter == "bilateral-separable";
   options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
+  // auto resolved here, so that stats.json records the ownership used.
+  const std::string ownership = args.ownership == "auto" ? (options.bilateral ? "border" : "smoothness") : args.ownership;
+  options.zipper.ownership = ownership == "border" ? Ownership::kBorder : Ownership::kSmoothness;
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();

@@ -18,6 +18,7 @@ namespace zipfusion::cli {
 struct ReconstructionArgs {
   std::string mode = "zipper";
   std::string filter = "bilateral";
+  std::string ownership = "auto";  // auto, border or smoothness (ZipperOptions::ownership)
   std::string rig;  // --rig: the capture's poses from another rig.json, or the live cameras' calibration
   std::string register_mode = "auto";
   bool no_volume_crop = false;
