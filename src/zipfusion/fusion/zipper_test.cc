@@ -11,6 +11,7 @@
 #include <functional>
 
 #include "zipfusion/core/mesh_distance.h"
+#include "zipfusion/core/mesh_test_util.h"
 #include "zipfusion/core/rasterizer.h"
 
 namespace zipfusion {
@@ -48,21 +49,6 @@ struct Scene {
     return zipper_meshes(cameras, options, scratch);
   }
 };
-
-TriangleMesh grid_surface(int nu, int nv, const std::function<Eigen::Vector3f(float, float)>& point) {
-  TriangleMesh mesh;
-  for (int j = 0; j <= nv; ++j) {
-    for (int i = 0; i <= nu; ++i) mesh.positions.push_back(point(static_cast<float>(i) / nu, static_cast<float>(j) / nv));
-  }
-  for (int j = 0; j < nv; ++j) {
-    for (int i = 0; i < nu; ++i) {
-      const int a = j * (nu + 1) + i;
-      mesh.triangles.emplace_back(a, a + 1, a + nu + 2);
-      mesh.triangles.emplace_back(a, a + nu + 2, a + nu + 1);
-    }
-  }
-  return mesh;
-}
 
 double area(const TriangleMesh& mesh) {
   double sum = 0;
@@ -110,7 +96,7 @@ double uncovered_share(const TriangleMesh& truth, const TriangleMesh& mesh, floa
 
 TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
   // A 1.2 m × 1.6 m wall at x = 0 seen by two cameras 2.2 m away, 40° apart.
-  const TriangleMesh wall = grid_surface(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
+  const TriangleMesh wall = grid_mesh(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
   Scene scene;
   for (double angle_deg : {-20.0, 20.0}) {
     const double a = angle_deg * std::numbers::pi / 180;
@@ -138,7 +124,7 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
 
 TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
   // A cylinder of radius 0.15 m, 1.2 m high (a torso), four cameras around it.
-  const TriangleMesh cylinder = grid_surface(180, 60, [](float s, float t) {
+  const TriangleMesh cylinder = grid_mesh(180, 60, [](float s, float t) {
     const float a = 2 * std::numbers::pi_v<float> * s;
     return Eigen::Vector3f(0.15f * std::cos(a), 0.15f * std::sin(a), 0.4f + 1.2f * t);
   });

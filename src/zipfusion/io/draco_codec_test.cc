@@ -8,6 +8,7 @@
 #include <set>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/mesh_test_util.h"
 
 namespace zipfusion {
 namespace {
@@ -15,20 +16,12 @@ namespace {
 // A wavy coloured sheet, 1 m × 1.5 m, vertices 5 mm apart (farther than the quantisation error,
 // so each decoded vertex maps back to one original).
 TriangleMesh wavy_sheet(int nu, int nv) {
-  TriangleMesh mesh;
+  TriangleMesh mesh = grid_mesh(nu, nv, [&](float s, float t) {
+    const float x = 0.005f * nu * s, z = 0.3f + 0.005f * nv * t;
+    return Eigen::Vector3f(x - 0.4f, 0.05f * std::sin(10.0f * x) + 0.02f * std::cos(7.0f * z), z);
+  });
   for (int j = 0; j <= nv; ++j) {
-    for (int i = 0; i <= nu; ++i) {
-      const float x = 0.005f * i, z = 0.3f + 0.005f * j;
-      mesh.positions.emplace_back(x - 0.4f, 0.05f * std::sin(10.0f * x) + 0.02f * std::cos(7.0f * z), z);
-      mesh.colors.push_back({static_cast<unsigned char>(i % 256), static_cast<unsigned char>(j % 256), 77});
-    }
-  }
-  for (int j = 0; j < nv; ++j) {
-    for (int i = 0; i < nu; ++i) {
-      const int a = j * (nu + 1) + i;
-      mesh.triangles.emplace_back(a, a + 1, a + nu + 2);
-      mesh.triangles.emplace_back(a, a + nu + 2, a + nu + 1);
-    }
+    for (int i = 0; i <= nu; ++i) mesh.colors.push_back({static_cast<unsigned char>(i % 256), static_cast<unsigned char>(j % 256), 77});
   }
   return mesh;
 }
