@@ -57,6 +57,7 @@
 #include "cli/frame_range.h"
 #include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/stopwatch.h"
 #include "zipfusion/depth/color_lookup.h"
 #include "zipfusion/depth/foreground.h"
 #include "zipfusion/io/capture.h"
@@ -86,7 +87,6 @@ struct Args {
   bool json = false;
 };
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 double peak_rss_mib() {
   rusage usage{};

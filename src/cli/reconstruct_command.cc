@@ -12,6 +12,7 @@
 #include "cli/frame_input.h"
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/stopwatch.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/pipeline/pipeline.h"
@@ -29,7 +30,6 @@ struct ReconstructArgs {
   ReconstructionArgs reconstruction;
 };
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 double median_of(std::vector<double> values) {
   if (values.empty()) return 0;

@@ -14,6 +14,7 @@
 #include "cli/frame_input.h"
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/stopwatch.h"
 #include "zipfusion/io/draco_codec.h"
 #include "zipfusion/stream/stream_server.h"
 
@@ -32,7 +33,6 @@ struct ServeArgs {
   ReconstructionArgs reconstruction;
 };
 
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 double epoch_ms() {
   return std::chrono::duration<double, std::milli>(std::chrono::system_clock::now().time_since_epoch()).count();

@@ -6,12 +6,12 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
+#include "zipfusion/core/stopwatch.h"
 
 namespace zipfusion {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 
 // Pyramid level of the ownership score. Level 1 (320×240 for a Kinect): for the border distance

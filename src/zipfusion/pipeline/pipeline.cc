@@ -6,12 +6,12 @@
 #include <thread>
 
 #include "zipfusion/core/parallel.h"
+#include "zipfusion/core/stopwatch.h"
 
 namespace zipfusion {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 struct DecodedFrame {
   FrameSet frames;
