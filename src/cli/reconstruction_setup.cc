@@ -74,7 +74,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"clipping_distance_m", options.zipper.clipping_distance_m},
           {"max_seam_edge_m", options.zipper.max_seam_edge_m},
           {"min_overlap_share", options.zipper.min_overlap_share},
-          {"ownership", options.zipper.ownership == Ownership::kAuto ? "auto" : options.zipper.ownership == Ownership::kBorder ? "border" : "smoothness"},
+          {"ownership", options.ownership() == Ownership::kBorder ? "border" : "smoothness"},  // as used, auto resolved
           {"hole_closing_px", options.zipper.hole_closing_px},
           {"smoothness_window_px", options.zipper.smoothness_window_px},
           {"smoothness_exponent", options.zipper.smoothness_exponent},
@@ -86,9 +86,9 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   options.bilateral = args.filter != "none";
   options.filter.separable = args.filter == "bilateral-separable";
   options.mode = args.mode == "zipper" ? ReconstructMode::kZipper : ReconstructMode::kSeparate;
-  // auto resolved here, so that stats.json records the ownership used.
-  const std::string ownership = args.ownership == "auto" ? (options.bilateral ? "border" : "smoothness") : args.ownership;
-  options.zipper.ownership = ownership == "border" ? Ownership::kBorder : Ownership::kSmoothness;
+  options.zipper.ownership = args.ownership == "border" ? Ownership::kBorder
+                             : args.ownership == "smoothness" ? Ownership::kSmoothness
+                                                              : Ownership::kAuto;
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();

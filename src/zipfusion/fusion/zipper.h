@@ -20,7 +20,7 @@ namespace zipfusion {
 
 //! Which camera keeps a surface that two see (redundancy.h, OwnershipScore).
 enum class Ownership {
-  kAuto,        // smoothness on unfiltered depth, border on filtered (resolved by the reconstruction; here: border)
+  kAuto,        // smoothness on unfiltered depth, border on filtered (ReconstructOptions::ownership; here: border)
   kBorder,      // the camera that sees it farther inside its own coverage (more frontally)
   kSmoothness,  // the camera whose own surface is smoother there (less noise)
 };

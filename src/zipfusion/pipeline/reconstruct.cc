@@ -114,9 +114,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
       if (active[c]) inputs[c] = {&cameras_[c].mesh, &cameras_[c].colors, &rig_.cameras[c]};
     }
     ZipperOptions zipper = options_.zipper;
-    // Unfiltered, noise decides which of two layers is the better measurement; filtered, the
-    // layers are about as smooth and the one seen more frontally (finer, better colour) wins.
-    if (zipper.ownership == Ownership::kAuto) zipper.ownership = options_.bilateral ? Ownership::kBorder : Ownership::kSmoothness;
+    zipper.ownership = options_.ownership();
     zipper.sdc_max_depth_jump_m = options_.sdc.max_depth_jump_m;
     zipper.num_threads = threads;
     ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_);

@@ -38,6 +38,14 @@ struct ReconstructOptions {
   int num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming the field
+
+  //! zipper.ownership with kAuto resolved: unfiltered, noise decides which of two layers is the
+  //! better measurement (smoothness); filtered, the layers are about as smooth and the one seen
+  //! more frontally (finer, better colour) wins (border).
+  Ownership ownership() const {
+    if (zipper.ownership != Ownership::kAuto) return zipper.ownership;
+    return bilateral ? Ownership::kBorder : Ownership::kSmoothness;
+  }
 };
 
 //! Wall-clock milliseconds per stage of one frame set (stages run over all cameras in parallel).
