@@ -22,9 +22,17 @@ __attribute__((target_clones("avx2", "default"))) void sdc_row(const float* dept
   }
 }
 
+__attribute__((target_clones("avx2", "default"))) int count_triangles(const std::uint8_t* bits, int count) {
+  int triangles = 0;
+  for (int i = 0; i < count; ++i) triangles += (bits[i] & kUpperTriangle) + ((bits[i] & kLowerTriangle) >> 1);
+  return triangles;
+}
+
 int DepthMesh::triangle_count() const {
+  // Every triangle lies in the depth box.
+  const PixelBox b = box();
   int count = 0;
-  for_each_nonempty_cell(triangles, [&](int, std::uint8_t bits) { count += (bits & kUpperTriangle ? 1 : 0) + (bits & kLowerTriangle ? 1 : 0); });
+  for (int v = b.v0; v < b.v1; ++v) count += count_triangles(triangles.data() + static_cast<size_t>(v) * width + b.u0, b.u1 - b.u0);
   return count;
 }
 

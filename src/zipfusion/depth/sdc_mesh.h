@@ -75,6 +75,17 @@ inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int he
 //! loop that vectorises, for the CPU (a row has a few hundred cells, most without depth).
 void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits);
 
+//! Element function: does a triangle use pixel p as a vertex, given the bits of p's own cell and
+//! of the cells to its left, above and above-left (0 where a cell does not exist)? p is vertex p
+//! of its own cell's upper triangle, r of both triangles of the cell to its left, b of both of the
+//! cell above, and d of the lower triangle of the cell above-left (triangle_pixels).
+inline bool pixel_used(std::uint8_t own, std::uint8_t left, std::uint8_t above, std::uint8_t above_left) {
+  return ((own & kUpperTriangle) | left | above | (above_left & kLowerTriangle)) != 0;
+}
+
+//! The number of triangles in the bits of `count` consecutive cells (a loop that vectorises).
+int count_triangles(const std::uint8_t* bits, int count);
+
 //! Pixel indices of the three vertices of triangle `bit` of cell `index`, counter-clockwise as seen
 //! from the camera.
 inline void triangle_pixels(int index, int width, TriangleBit bit, int out[3]) {

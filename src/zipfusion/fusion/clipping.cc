@@ -78,9 +78,7 @@ bool pixel_has_triangle(const DepthMesh& mesh, int p) {
     const int cu = u + du, cv = v + dv;
     return cu >= 0 && cv >= 0 && cu < mesh.width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * mesh.width + cu] : 0;
   };
-  // p is vertex p of the upper triangle of its own cell, r of both triangles of the cell to its
-  // left, b of both of the cell above, and d of the lower triangle of the cell above-left.
-  return (bits(0, 0) & kUpperTriangle) || bits(-1, 0) || bits(0, -1) || (bits(-1, -1) & kLowerTriangle);
+  return pixel_used(bits(0, 0), bits(-1, 0), bits(0, -1), bits(-1, -1));
 }
 
 // Adds the pixels of the taken triangles (already cleared from the mesh) to the seam's vertex

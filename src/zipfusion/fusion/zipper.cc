@@ -21,33 +21,22 @@ using Clock = std::chrono::steady_clock;
 // area on samba-4cam as it was but doubled the seams' (docs/design.md).
 constexpr int kScoreLevel = 1;
 
-// The number of triangles in `count` cells' bits.
-__attribute__((target_clones("avx2", "default"))) int count_triangles_row(const std::uint8_t* bits, int count) {
-  int triangles = 0;
-  for (int i = 0; i < count; ++i) triangles += (bits[i] & kUpperTriangle) + ((bits[i] & kLowerTriangle) >> 1);
-  return triangles;
-}
-
-// Marks the pixels u0..u1−1 of row v that a triangle uses: pixel p is vertex p of its own cell's
-// upper triangle, r of both triangles of the cell to its left, b of both of the cell above, and d
-// of the lower triangle of the cell above-left (triangle_pixels). The first column and row read
-// no cell outside the image.
+// pixel_used for the pixels u0..u1−1 of row v; the first column and row read no cell outside
+// the image.
 __attribute__((target_clones("avx2", "default"))) void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1,
                                                                             std::uint8_t* used_row) {
   const std::uint8_t* row = triangles + v * width;
   const std::uint8_t* above = v > 0 ? row - width : nullptr;
   int u = u0;
   if (u == 0 && u < u1) {
-    used_row[0] = static_cast<std::uint8_t>(((row[0] & kUpperTriangle) | (above ? above[0] : 0)) != 0);
+    used_row[0] = pixel_used(row[0], 0, above ? above[0] : 0, 0);
     ++u;
   }
   if (above == nullptr) {
-    for (; u < u1; ++u) used_row[u] = static_cast<std::uint8_t>(((row[u] & kUpperTriangle) | row[u - 1]) != 0);
+    for (; u < u1; ++u) used_row[u] = pixel_used(row[u], row[u - 1], 0, 0);
     return;
   }
-  for (; u < u1; ++u) {
-    used_row[u] = static_cast<std::uint8_t>(((row[u] & kUpperTriangle) | row[u - 1] | above[u] | (above[u - 1] & kLowerTriangle)) != 0);
-  }
+  for (; u < u1; ++u) used_row[u] = pixel_used(row[u], row[u - 1], above[u], above[u - 1]);
 }
 
 // The number of used pixels among `count`.
@@ -234,7 +223,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     int triangles = 0;
     for (int v = box.v0; v < box.v1; ++v) {
       const int row = v * depth_mesh.width;
-      triangles += count_triangles_row(depth_mesh.triangles.data() + row + box.u0, box.u1 - box.u0);
+      triangles += count_triangles(depth_mesh.triangles.data() + row + box.u0, box.u1 - box.u0);
       mark_used_pixels_row(depth_mesh.triangles.data(), depth_mesh.width, v, box.u0, box.u1, s.used.data() + row);
     }
     for (const Seam& seam : seams) {
