@@ -96,15 +96,10 @@ void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, I
   const size_t plane = static_cast<size_t>(kBlockRows + r) * width;  // one block's weight (or value) sums
   scratch.width = width;
   scratch.height = 0;  // not an image here: the blocks' sums
-  scratch.data.resize(2 * plane * blocks + height * 2);
-  float* spans = scratch.data.data() + 2 * plane * blocks;  // per row: first and last column with depth (exact as floats)
+  scratch.data.resize(2 * plane * blocks);
   auto row_of = [&](int v) { return depth_m.data.data() + static_cast<size_t>(v) * width; };
-  for (int v = 0; v < height; ++v) {
-    const RowSpan span = depth_span(row_of(v), width);
-    spans[2 * v] = static_cast<float>(span.first);
-    spans[2 * v + 1] = static_cast<float>(span.last);
-  }
-  auto span_of = [&](int v) { return RowSpan{static_cast<int>(spans[2 * v]), static_cast<int>(spans[2 * v + 1])}; };
+  std::vector<RowSpan> spans(height);  // each row's is read by the r rows above it too
+  for (int v = 0; v < height; ++v) spans[v] = depth_span(row_of(v), width);
   const int threads = std::max(1, std::min(num_threads, blocks));
   parallel_for(0, blocks, [&](int block) {
     float* weights = scratch.data.data() + 2 * plane * block;
@@ -112,7 +107,7 @@ void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, I
     std::fill(weights, weights + 2 * plane, 0.0f);
     const int first_row = block * kBlockRows, end_row = std::min(height, first_row + kBlockRows);
     for (int v = first_row; v < end_row; ++v) {
-      const RowSpan span = span_of(v);
+      const RowSpan span = spans[v];
       if (span.first > span.last) continue;
       const float* row = row_of(v);
       float* row_weights = weights + static_cast<size_t>(v - first_row) * width;
@@ -123,7 +118,7 @@ void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, I
         if (lo <= hi) accumulate_taps(row + lo, row + lo + dx, hi - lo + 1, kernel.spatial[r * side + dx + r], inv, row_weights + lo, row_values + lo);
       }
       for (int dy = 1; dy <= r && v + dy < height; ++dy) {
-        const RowSpan below = span_of(v + dy);
+        const RowSpan below = spans[v + dy];
         if (below.first > below.last) continue;
         const float* below_row = row_of(v + dy);
         float* below_weights = weights + static_cast<size_t>(v + dy - first_row) * width;
