@@ -84,9 +84,14 @@ try {
   await page.waitForFunction(() => Number(document.body.dataset.frames || 0) >= 10, null, { timeout: 60000 });
   const first = await canvasSummary(page);
   const firstShot = await page.screenshot();
-  await page.waitForFunction((n) => Number(document.body.dataset.frames || 0) >= n, Number(await page.evaluate(() => document.body.dataset.frames)) + 15,
-    { timeout: 60000 });
-  const second = await canvasSummary(page);
+  // The capture loops over 12 frames and a slow viewer skips some, so two samples may show the
+  // same capture frame by chance: sample a few times, spaced apart, until one differs.
+  let second = first;
+  for (let sample = 0; sample < 6 && second.hash === first.hash; sample += 1) {
+    await page.waitForFunction((n) => Number(document.body.dataset.frames || 0) >= n,
+      Number(await page.evaluate(() => document.body.dataset.frames)) + 5, { timeout: 60000 });
+    second = await canvasSummary(page);
+  }
   const secondShot = await page.screenshot();
   if (artifacts) {
     writeFileSync(join(artifacts, 'viewer_first.png'), firstShot);
