@@ -22,7 +22,7 @@ struct Frame {
   Rig rig;
   FrameSet frames;
   std::vector<Image<float>> foreground, filtered;
-  std::vector<DepthMesh> meshes;
+  std::vector<DepthMesh> meshes, filtered_meshes;
   std::vector<std::vector<Rgb8>> colors;
 };
 
@@ -37,6 +37,7 @@ const Frame& frame() {
     out.foreground.resize(n);
     out.filtered.resize(n);
     out.meshes.resize(n);
+    out.filtered_meshes.resize(n);
     out.colors.resize(n);
     const BilateralKernel kernel(BilateralOptions{});
     for (int c = 0; c < n; ++c) {
@@ -44,6 +45,8 @@ const Frame& frame() {
       bilateral_filter(out.foreground[c], kernel, out.filtered[c]);
       triangulate_sdc(out.foreground[c], out.rig.cameras[c].depth_intrinsics, out.rig.cameras[c].world_from_depth.cast<float>(), {},
                       out.meshes[c]);
+      triangulate_sdc(out.filtered[c], out.rig.cameras[c].depth_intrinsics, out.rig.cameras[c].world_from_depth.cast<float>(), {},
+                      out.filtered_meshes[c]);
       lookup_colors(out.meshes[c], out.rig.cameras[c], &out.frames.cameras[c].color, out.colors[c]);
     }
     return out;
@@ -112,25 +115,34 @@ void BM_DownsampleMesh(benchmark::State& state) {
 }
 BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
 
-// All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four unfiltered cameras;
-// first Arg = threads, second = ownership (0 border, 1 smoothness: the default for unfiltered
-// depth).
+// All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four cameras; Args =
+// threads, ownership (0 border, 1 smoothness), depth (0 unfiltered, 1 bilateral-filtered). The
+// reconstruction's defaults are smoothness for unfiltered and border for filtered depth.
 void BM_ZipperFourCameras(benchmark::State& state) {
   const Frame& f = frame();
   ZipperScratch scratch;
   std::vector<DepthMesh> meshes;
   const ZipperOptions options{.ownership = state.range(1) ? Ownership::kSmoothness : Ownership::kBorder,
                               .num_threads = static_cast<int>(state.range(0))};
+  const std::vector<DepthMesh>& input = state.range(2) ? f.filtered_meshes : f.meshes;
   for (auto _ : state) {
     state.PauseTiming();
-    meshes = f.meshes;  // zippering clears bits: start each iteration from the same meshes
+    meshes = input;  // zippering clears bits: start each iteration from the same meshes
     std::vector<ZipperCamera> cameras;
     for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.colors[c], &f.rig.cameras[c]});
     state.ResumeTiming();
     benchmark::DoNotOptimize(zipper_meshes(cameras, options, scratch));
   }
 }
-BENCHMARK(BM_ZipperFourCameras)->Args({1, 0})->Args({2, 0})->Args({1, 1})->Args({2, 1})->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ZipperFourCameras)
+    ->Args({1, 0, 0})
+    ->Args({2, 0, 0})
+    ->Args({1, 1, 0})
+    ->Args({2, 1, 0})
+    ->Args({1, 0, 1})
+    ->Args({2, 0, 1})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace zipfusion
