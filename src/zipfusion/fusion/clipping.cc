@@ -259,15 +259,23 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
     seam.used_pca = true;
   }
 
+  // The seam vertices come in the order their triangles were collected, along the boundaries, so
+  // each lies next to the one before: inserted one by one, each from the face of the previous,
+  // the point location walks a step or two. CGAL's range insertion sorts the points along a
+  // Hilbert curve first, which cost more than it saved here (samba-4cam frame 0, one thread:
+  // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation).
   Delaunay triangulation;
-  triangulation.insert(points.begin(), points.end());
   std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
-  for (auto v = triangulation.finite_vertices_begin(); v != triangulation.finite_vertices_end(); ++v) handle[v->info().index] = v;
+  Delaunay::Face_handle hint;
+  for (const auto& [point, info] : points) {
+    const Delaunay::Vertex_handle v = triangulation.insert(point, hint);
+    // A seam vertex at the 2-D position of an earlier one shares that vertex and its index.
+    if (v->info().index < 0) v->info() = info;
+    handle[info.index] = v;
+    hint = v->face();
+  }
   for (const auto& [i, j] : constraints) {
-    // Two seam vertices at one 2-D position share a handle (the other is not in the triangulation).
-    if (handle[i] != Delaunay::Vertex_handle() && handle[j] != Delaunay::Vertex_handle() && handle[i] != handle[j]) {
-      triangulation.insert_constraint(handle[i], handle[j]);
-    }
+    if (handle[i] != handle[j]) triangulation.insert_constraint(handle[i], handle[j]);
   }
   const float max_edge2 = options.max_edge * options.max_edge;
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
