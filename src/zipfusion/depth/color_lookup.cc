@@ -11,7 +11,7 @@ void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const Color
   // sixth of this function's time).
   static_assert(sizeof(Rgb8) == 3 && kNoColor.r == 128 && kNoColor.g == 128 && kNoColor.b == 128);
   out.resize(count);
-  std::memset(out.data(), 128, out.size() * sizeof(Rgb8));
+  std::memset(static_cast<void*>(out.data()), 128, out.size() * sizeof(Rgb8));
   if (color == nullptr || color->empty() || !camera.has_color()) return;
   const Intrinsics& color_k = *camera.color_intrinsics;
   // Depth pixels straight into the colour camera's frame.

@@ -100,13 +100,6 @@ inline void triangle_pixels(int index, int width, TriangleBit bit, int out[3]) {
   }
 }
 
-//! Centre (centroid) of a triangle in world coordinates.
-inline Eigen::Vector3f triangle_centre(const DepthMesh& mesh, int index, TriangleBit bit) {
-  int v[3];
-  triangle_pixels(index, mesh.width, bit, v);
-  return (mesh.points[v[0]] + mesh.points[v[1]] + mesh.points[v[2]]) * (1.0f / 3.0f);
-}
-
 //! True when the triangle exists and one of its three edge neighbours does not.
 //! Upper triangle of (u, v): neighbours are the lower triangles of (u, v−1), (u−1, v) and (u, v).
 //! Lower triangle of (u, v): neighbours are the upper triangles of (u, v), (u+1, v) and (u, v+1).
@@ -120,17 +113,6 @@ inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int w
            !(triangles[index - 1] & kLowerTriangle);
   }
   return !(triangles[index] & kUpperTriangle) || !(triangles[index + width] & kUpperTriangle) || !(triangles[index + 1] & kUpperTriangle);
-}
-
-//! Pixel of a world point in a camera (`depth_from_world` = inverse of its world_from_depth), or
-//! false when the point is behind it.
-inline bool project_world_point(const Eigen::Vector3f& p_world, const Rigid3f& depth_from_world, const Intrinsics& k,
-                                Eigen::Vector2f& pixel, float& depth) {
-  const Eigen::Vector3f p = depth_from_world * p_world;
-  if (p.z() <= 0) return false;
-  pixel = project_pinhole(k, p);
-  depth = p.z();
-  return true;
 }
 
 //! Calls f(cell, bits) for every cell with a triangle, in order. Most cells of a depth camera's
