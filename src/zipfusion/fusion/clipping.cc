@@ -35,15 +35,28 @@ void next_stamp(SeamScratch& s, size_t size) {
   }
 }
 
+// The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
+// meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
+// change until both are), and each seam reads both lists.
+void select_seeds(const MeshView& view, const OverlapMask& mask, SeamScratch& s) {
+  const DepthMesh& mesh = *view.mesh;
+  s.seeds.clear();
+  for (int id : s.boundary) {
+    if (mask.covers(cell_of(id), mesh.width, view.level) && is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) {
+      s.seeds.push_back(id);
+    }
+  }
+}
+
 // The triangles of `a` within d_c of `b` that border the seam: a's boundary triangles with a
 // triangle of b that near, and a's triangles under b's boundary. The second matter where `b`
 // lost the overlap and ends on top of a's surface: there `a` has no boundary, yet its triangles
 // under b's border must join the seam for the two to be stitched. After ownership-based
 // redundancy removal the two meshes meet, so the triangles within d_c of the other mesh are this
 // one ring: growing it through every triangle within d_c (a flood fill) took 1.7 times the
-// triangles on samba-4cam and changed no quality figure (docs/design.md).
-void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_boundary, float distance, const OverlapMask& mask_a,
-                         const OverlapMask& mask_b, SeamScratch& s) {
+// triangles on samba-4cam and changed no quality figure (docs/design.md). `b_seeds`: b's
+// boundary triangles inside its mask (select_seeds); a's are in `s.seeds`.
+void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_seeds, float distance, SeamScratch& s) {
   const DepthMesh& mesh = *a.mesh;
   const Rigid3f b_from_a_camera = b_from_a(a, b), a_from_b_camera = b_from_a(b, a);
   next_stamp(s, mesh.triangles.size() * 2);
@@ -57,14 +70,9 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     if (!may_see_point(b, centre, 2 * distance) || !has_triangle_near(b, centre, distance, kSeamWindow)) return;
     s.taken.push_back(id);
   };
-  for (int id : s.boundary) {
-    if (mask_a.covers(cell_of(id), mesh.width, a.level) && is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) visit(id);
-  }
-  const DepthMesh& other = *b.mesh;
-  for (int id : b_boundary) {
-    const int cell = cell_of(id);
-    if (!mask_b.covers(cell, other.width, b.level) || !is_boundary_triangle(other.triangles.data(), cell, other.width, bit_of(id))) continue;
-    const int under = project_camera_point(a, a_from_b_camera * camera_triangle_centre(b, cell, bit_of(id))).cell;
+  for (int id : s.seeds) visit(id);
+  for (int id : b_seeds) {
+    const int under = project_camera_point(a, a_from_b_camera * camera_triangle_centre(b, cell_of(id), bit_of(id))).cell;
     if (under < 0 || !mesh.triangles[under]) continue;
     visit(triangle_id(under, kUpperTriangle));
     visit(triangle_id(under, kLowerTriangle));
@@ -190,8 +198,10 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
                      SeamScratch& scratch_b) {
   Seam seam;
   // Both seams are found against the meshes as FRBR left them, then taken out together.
-  find_seam_triangles(a, b, scratch_b.boundary, options.clipping_distance, mask_a, mask_b, scratch_a);
-  find_seam_triangles(b, a, scratch_a.boundary, options.clipping_distance, mask_b, mask_a, scratch_b);
+  select_seeds(a, mask_a, scratch_a);
+  select_seeds(b, mask_b, scratch_b);
+  find_seam_triangles(a, b, scratch_b.seeds, options.clipping_distance, scratch_a);
+  find_seam_triangles(b, a, scratch_a.seeds, options.clipping_distance, scratch_b);
   // Both meshes lose their seam triangles before either's points are chosen, so "kept" means
   // kept after clipping.
   for (int id : scratch_a.taken) a.mesh->triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));

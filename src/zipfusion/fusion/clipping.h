@@ -50,6 +50,7 @@ struct SeamScratch {
   // collect_boundary_triangles (instead of scanning the whole bit matrix for every pair) and
   // grown by each clipping.
   std::vector<int> boundary;
+  std::vector<int> seeds;  // the current pair's: boundary triangles inside its overlap mask
 };
 
 //! Element function: is point p (projected into `view`) covered by an existing triangle of `view`
