@@ -156,8 +156,9 @@ namespace {
 cv::Rect start_score(const DepthMesh& mesh, int level, int pad, OwnershipScore& out) {
   out.width = mesh.width;
   out.height = mesh.height;
+  out.stride = mesh.width + 2;
   out.level = level;
-  out.cells.assign(static_cast<size_t>(mesh.width) * mesh.height, 0.0f);
+  out.cells.assign(static_cast<size_t>(out.stride) * (mesh.height + 2), 0.0f);
   const PixelBox depth_box = mesh.box();
   if (depth_box.empty()) return {};
   return {cv::Point(std::max(0, depth_box.u0 - pad), std::max(0, depth_box.v0 - pad)),
@@ -184,7 +185,7 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
   for (int y = 0; y < box.height; ++y) {
     const float* d = distance.ptr<float>(y);
     const int base = (box.y + y) * mesh.width + box.x;
-    for (int x = 0; x < box.width; ++x) out.cells[base + x] = mesh.triangles[base + x] ? d[x] * pixels_per_cell : 0.0f;
+    for (int x = 0; x < box.width; ++x) out.cell(box.x + x, box.y + y) = mesh.triangles[base + x] ? d[x] * pixels_per_cell : 0.0f;
   }
 }
 
@@ -233,7 +234,7 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, i
     for (int x = 0; x < box.width; ++x) {
       // No sheet is smoother than its average: a ratio above 1 (rounding, depths mixed across a
       // discontinuity by the average) counts as 1.
-      if (mesh.triangles[base + x] && a[x] > 0) out.cells[base + x] = std::pow(std::min(1.0f, sa[x] / a[x]), exponent);
+      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = std::pow(std::min(1.0f, sa[x] / a[x]), exponent);
     }
   }
 }
