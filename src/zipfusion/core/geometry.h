@@ -26,6 +26,18 @@ double rotation_angle_deg(const Rigid3d& t);
 //! z-up world. Precondition: the viewing direction is not vertical.
 Rigid3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
 
+//! Element functions: ⌊x⌋ and ⌈x⌉ as ints, for |x| < 2³¹, by truncation corrected by one.
+//! Without SSE4.1 (the default x86-64 target), std::floor compiles to a longer sequence; in the
+//! zipper's per-triangle tests it was a fifth of the ownership test's instructions.
+inline int floor_to_int(float x) {
+  const int i = static_cast<int>(x);
+  return i - (x < static_cast<float>(i));
+}
+inline int ceil_to_int(float x) {
+  const int i = static_cast<int>(x);
+  return i + (x > static_cast<float>(i));
+}
+
 //! Axis-aligned box.
 struct Box3d {
   Eigen::Vector3d min = Eigen::Vector3d::Zero();

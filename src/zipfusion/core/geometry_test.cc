@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <thread>
 
 #include "zipfusion/core/camera.h"
@@ -52,6 +53,13 @@ TEST(Geometry, LookAtMatchesOpenCvAxes) {
   const Eigen::Vector2d pixel = project(k, pose.inverse() * Eigen::Vector3d(0, 0, 1.0));
   EXPECT_NEAR(pixel.x(), 319.5, 1e-9);
   EXPECT_NEAR(pixel.y(), 239.5, 1e-9);
+}
+
+TEST(Geometry, FloorAndCeilToIntMatchTheLibrary) {
+  for (float x : {-1e6f, -2.5f, -2.0f, -1.0f, -0.999f, -1e-7f, 0.0f, 1e-7f, 0.5f, 1.0f, 2.999f, 3.0f, 1e6f + 0.5f}) {
+    EXPECT_EQ(floor_to_int(x), static_cast<int>(std::floor(x))) << x;
+    EXPECT_EQ(ceil_to_int(x), static_cast<int>(std::ceil(x))) << x;
+  }
 }
 
 TEST(Camera, ProjectUnprojectRoundTrip) {

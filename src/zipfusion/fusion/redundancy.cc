@@ -245,11 +245,11 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
   const DepthMesh& mesh = *view.mesh;
   const float fx = static_cast<float>(view.intrinsics.fx), fy = static_cast<float>(view.intrinsics.fy);
   const float cx = static_cast<float>(view.intrinsics.cx), cy = static_cast<float>(view.intrinsics.cy);
-  const int window = std::clamp(static_cast<int>(std::ceil(distance * fx / q.z())), 1, max_window);
+  const int window = std::clamp(ceil_to_int(distance * fx / q.z()), 1, max_window);
   // Triangle centres sit at 1/3 and 2/3 of a cell, so the cells whose index is within the window
   // of floor(pixel) hold every centre within `window` pixels. The same surface is usually found
   // in the first rings, so rings are searched from the centre outwards.
-  const int cu = static_cast<int>(std::floor(p.x)), cv = static_cast<int>(std::floor(p.y));
+  const int cu = floor_to_int(p.x), cv = floor_to_int(p.y);
   const int width = mesh.width, last_u = mesh.width - 2, last_v = mesh.height - 2;
   const float distance2 = distance * distance;
   const float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy, third = 1.0f / 3.0f;

@@ -83,12 +83,8 @@ inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
   const float scale = 1.0f / static_cast<float>(1 << q.level);
   const float cx = x * scale - 0.5f, cy = y * scale - 0.5f;
   if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(q.width) && cy < static_cast<float>(q.height))) return 0.0f;
-  // Floor by truncation, corrected below zero: without SSE4.1, std::floor compiles to a longer
-  // sequence (a fifth of owner_is_other's instructions). u, v ≥ −1 and u + 1, v + 1 ≤ the size: all
-  // four cells are in the padded map.
-  int u = static_cast<int>(cx), v = static_cast<int>(cy);
-  u -= cx < static_cast<float>(u);
-  v -= cy < static_cast<float>(v);
+  // u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
+  const int u = floor_to_int(cx), v = floor_to_int(cy);
   const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
   const float* row0 = q.cells.data() + static_cast<size_t>(v + 1) * q.stride + (u + 1);
   const float* row1 = row0 + q.stride;
