@@ -115,28 +115,32 @@ inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int w
   return !(triangles[index] & kUpperTriangle) || !(triangles[index + width] & kUpperTriangle) || !(triangles[index + 1] & kUpperTriangle);
 }
 
-//! Calls f(cell, bits) for every cell with a triangle, in order. Most cells of a depth camera's
-//! image hold none (the subject fills a fraction of it), so empty cells are skipped eight at a
-//! time.
+//! Calls f(i, bytes[i]) for every nonzero byte of bytes[0..count), in order, skipping zero bytes
+//! eight at a time: most cells of a depth camera's image hold no triangle (the subject fills a
+//! fraction of it), and most of a mesh's cells are not on its boundary.
 template <typename F>
-void for_each_nonempty_cell(const std::vector<std::uint8_t>& triangles, F&& f) {
-  const int cells = static_cast<int>(triangles.size());
-  const std::uint8_t* bits = triangles.data();
-  int cell = 0;
-  while (cell < cells) {
-    if (cell + 8 <= cells) {
+void for_each_nonzero_byte(const std::uint8_t* bytes, int count, F&& f) {
+  int i = 0;
+  while (i < count) {
+    if (i + 8 <= count) {
       std::uint64_t word;
-      std::memcpy(&word, bits + cell, sizeof word);
+      std::memcpy(&word, bytes + i, sizeof word);
       if (word == 0) {
-        cell += 8;
+        i += 8;
         continue;
       }
     }
-    const int end = std::min(cell + 8, cells);
-    for (; cell < end; ++cell) {
-      if (bits[cell]) f(cell, bits[cell]);
+    const int end = std::min(i + 8, count);
+    for (; i < end; ++i) {
+      if (bytes[i]) f(i, bytes[i]);
     }
   }
+}
+
+//! Calls f(cell, bits) for every cell with a triangle, in order.
+template <typename F>
+void for_each_nonempty_cell(const std::vector<std::uint8_t>& triangles, F&& f) {
+  for_each_nonzero_byte(triangles.data(), static_cast<int>(triangles.size()), f);
 }
 
 //! Calls f(pixels) with the three pixel indices (as triangle_pixels gives them) of every existing

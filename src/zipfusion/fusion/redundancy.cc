@@ -104,11 +104,10 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
     boundary_row(t + first, above, t + first + mesh.width, count, flags.data());
     flags[0] = is_boundary_triangle(t, first, mesh.width, kUpperTriangle) * kUpperTriangle +
                is_boundary_triangle(t, first, mesh.width, kLowerTriangle) * kLowerTriangle;
-    for (int i = 0; i < count; ++i) {
-      if (!flags[i]) continue;
-      if (flags[i] & kUpperTriangle) boundary.push_back(triangle_id(first + i, kUpperTriangle));
-      if (flags[i] & kLowerTriangle) boundary.push_back(triangle_id(first + i, kLowerTriangle));
-    }
+    for_each_nonzero_byte(flags.data(), count, [&](int i, std::uint8_t bits) {
+      if (bits & kUpperTriangle) boundary.push_back(triangle_id(first + i, kUpperTriangle));
+      if (bits & kLowerTriangle) boundary.push_back(triangle_id(first + i, kLowerTriangle));
+    });
   }
 }
 
