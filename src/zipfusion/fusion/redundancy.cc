@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
@@ -400,13 +401,12 @@ int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const Dep
     }
     return false;
   };
-  const int cells = coarse.width * coarse.height;
-  for (int i = 0; i < cells; ++i) {
+  auto propagate_cell = [&](int i) {
     std::uint8_t removed = coarse_before[i] & static_cast<std::uint8_t>(~coarse.triangles[i]);
-    if (!removed) continue;
+    if (!removed) return;
     if ((removed & kUpperTriangle) && next_to_kept(i, kUpperTriangle)) removed &= static_cast<std::uint8_t>(~kUpperTriangle);
     if ((removed & kLowerTriangle) && next_to_kept(i, kLowerTriangle)) removed &= static_cast<std::uint8_t>(~kLowerTriangle);
-    if (!removed) continue;
+    if (!removed) return;
     const int fu = 2 * (i % coarse.width), fv = 2 * (i / coarse.width);
     if (removed & kUpperTriangle) {
       clear(fu, fv, kUpperTriangle | kLowerTriangle);
@@ -418,6 +418,21 @@ int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const Dep
       clear(fu, fv + 1, kLowerTriangle);
       clear(fu + 1, fv + 1, kUpperTriangle | kLowerTriangle);
     }
+  };
+  // Few cells lost a triangle: eight cells at a time are skipped where none did.
+  const int cells = coarse.width * coarse.height;
+  int i = 0;
+  while (i < cells) {
+    if (i + 8 <= cells) {
+      std::uint64_t before, now;
+      std::memcpy(&before, coarse_before.data() + i, sizeof before);
+      std::memcpy(&now, coarse.triangles.data() + i, sizeof now);
+      if ((before & ~now) == 0) {
+        i += 8;
+        continue;
+      }
+    }
+    for (const int end = std::min(i + 8, cells); i < end; ++i) propagate_cell(i);
   }
   return cleared;
 }
