@@ -1,0 +1,80 @@
+// Zippering of one samba-4cam frame set, repeated, for instruction counts under callgrind, which
+// are exact where this machine's times vary by a third (docs/profile.md):
+//   valgrind --tool=callgrind --toggle-collect='zipfusion::zipper_meshes*' build/zf_zipper_repeat
+// with [--frame F] [--unfiltered] [--repeat N]; the total over N calls divided by N is the count
+// per frame set once the first call's allocations are amortised.
+// Without valgrind it prints the median stage times over the repetitions, one thread unless
+// --threads. Either way it prints what the zipper produced, so that a change meant to be only
+// faster can be checked to give the same mesh.
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "zipfusion/depth/bilateral.h"
+#include "zipfusion/depth/color_lookup.h"
+#include "zipfusion/depth/foreground.h"
+#include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/fusion/zipper.h"
+#include "zipfusion/io/capture.h"
+
+using namespace zipfusion;
+
+int main(int argc, char** argv) {
+  int frame = 0, repeat = 3, threads = 1;
+  bool filtered = true;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--unfiltered") {
+      filtered = false;
+    } else if (i + 1 < argc && (arg == "--frame" || arg == "--repeat" || arg == "--threads")) {
+      const int value = std::atoi(argv[++i]);
+      (arg == "--frame" ? frame : arg == "--repeat" ? repeat : threads) = value;
+    } else {
+      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T]\n");
+      return 2;
+    }
+  }
+  if (repeat < 1) repeat = 1;
+  const Capture capture = Capture::open(std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
+  Rig rig = capture.ground_truth_rig().value_or(capture.rig());
+  rig.volume = capture.rig().volume;
+  const FrameSet frames = capture.load_frame(frame);
+  const int n = capture.camera_count();
+  std::vector<DepthMesh> meshes(n);
+  std::vector<std::vector<Rgb8>> colors(n);
+  const BilateralKernel kernel(BilateralOptions{});
+  for (int c = 0; c < n; ++c) {
+    Image<float> foreground, smoothed;
+    extract_foreground(frames.cameras[c].depth, rig.depth_unit_m, rig.cameras[c], rig.volume, {}, foreground);
+    if (filtered) bilateral_filter(foreground, kernel, smoothed);
+    triangulate_sdc(filtered ? smoothed : foreground, rig.cameras[c].depth_intrinsics, rig.cameras[c].world_from_depth.cast<float>(), {},
+                    meshes[c]);
+    lookup_colors(meshes[c], rig.cameras[c], &frames.cameras[c].color, colors[c]);
+  }
+  // The reconstruction's default ownership for each input.
+  const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness, .num_threads = threads};
+  ZipperScratch scratch;
+  std::vector<double> redundancy_ms, clipping_ms;
+  ZipperResult result;
+  for (int r = 0; r < repeat; ++r) {
+    std::vector<DepthMesh> work = meshes;  // zippering clears bits
+    std::vector<ZipperCamera> cameras;
+    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &colors[c], &rig.cameras[c]});
+    result = zipper_meshes(cameras, options, scratch);
+    redundancy_ms.push_back(result.stats.redundancy_ms);
+    clipping_ms.push_back(result.stats.clipping_ms);
+  }
+  std::sort(redundancy_ms.begin(), redundancy_ms.end());
+  std::sort(clipping_ms.begin(), clipping_ms.end());
+  std::printf("samba-4cam frame %d, %s, %d pairs: %zu triangles, %d removed as redundant, %d taken into seams, %d seam triangles\n", frame,
+              filtered ? "bilateral-filtered, border ownership" : "unfiltered, smoothness ownership", result.stats.pairs,
+              result.mesh.triangles.size(), result.stats.redundant_removed, result.stats.seam_taken, result.stats.seam_added);
+  std::printf("median of %d on %d thread(s): redundancy %.2f ms, clipping %.2f ms\n", repeat, threads, redundancy_ms[repeat / 2],
+              clipping_ms[repeat / 2]);
+  return 0;
+}
