@@ -273,17 +273,24 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   // each lies next to the one before: inserted one by one, each from the face of the previous,
   // the point location walks a step or two. CGAL's range insertion sorts the points along a
   // Hilbert curve first, which cost more than it saved here (samba-4cam frame 0, one thread:
-  // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation).
+  // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation). Every 8th point
+  // goes in first, a skeleton of the whole seam, so that the others mostly fall inside the hull
+  // rather than extend it, which costs CGAL more flips (clipping 3 % fewer instructions, about
+  // 0.4 ms of 16 on one thread; every 4th, 16th or 32nd did less).
+  constexpr size_t kSkeletonStride = 8;
   Delaunay triangulation;
   std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
   Delaunay::Face_handle hint;
-  for (const auto& [point, info] : points) {
-    const Delaunay::Vertex_handle v = triangulation.insert(point, hint);
+  auto insert_point = [&](const std::pair<Kernel::Point_2, SeamInfo>& point) {
+    if (handle[point.second.index] != Delaunay::Vertex_handle()) return;  // in the skeleton
+    const Delaunay::Vertex_handle v = triangulation.insert(point.first, hint);
     // A seam vertex at the 2-D position of an earlier one shares that vertex and its index.
-    if (v->info().index < 0) v->info() = info;
-    handle[info.index] = v;
+    if (v->info().index < 0) v->info() = point.second;
+    handle[point.second.index] = v;
     hint = v->face();
-  }
+  };
+  for (size_t k = 0; k < points.size(); k += kSkeletonStride) insert_point(points[k]);
+  for (const auto& point : points) insert_point(point);
   for (const auto& [i, j] : constraints) {
     if (handle[i] != handle[j]) triangulation.insert_constraint(handle[i], handle[j]);
   }
