@@ -4,8 +4,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include <filesystem>
-
+#include "samba_frame.h"
 #include "zipfusion/depth/bilateral.h"
 #include "zipfusion/depth/color_lookup.h"
 #include "zipfusion/depth/foreground.h"
@@ -16,53 +15,20 @@
 namespace zipfusion {
 namespace {
 
-namespace fs = std::filesystem;
-
-struct Frame {
-  Rig rig;
-  FrameSet frames;
-  std::vector<Image<float>> foreground, filtered;
-  std::vector<DepthMesh> meshes, filtered_meshes;
-  std::vector<std::vector<Rgb8>> colors;
-};
-
-const Frame& frame() {
-  static const Frame f = [] {
-    const Capture capture = Capture::open(fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
-    Frame out;
-    out.rig = capture.ground_truth_rig().value_or(capture.rig());
-    out.rig.volume = capture.rig().volume;
-    out.frames = capture.load_frame(0);
-    const int n = capture.camera_count();
-    out.foreground.resize(n);
-    out.filtered.resize(n);
-    out.meshes.resize(n);
-    out.filtered_meshes.resize(n);
-    out.colors.resize(n);
-    const BilateralKernel kernel(BilateralOptions{});
-    for (int c = 0; c < n; ++c) {
-      extract_foreground(out.frames.cameras[c].depth, out.rig.depth_unit_m, out.rig.cameras[c], out.rig.volume, {}, out.foreground[c]);
-      bilateral_filter(out.foreground[c], kernel, out.filtered[c]);
-      triangulate_sdc(out.foreground[c], out.rig.cameras[c].depth_intrinsics, out.rig.cameras[c].world_from_depth.cast<float>(), {},
-                      out.meshes[c]);
-      triangulate_sdc(out.filtered[c], out.rig.cameras[c].depth_intrinsics, out.rig.cameras[c].world_from_depth.cast<float>(), {},
-                      out.filtered_meshes[c]);
-      lookup_colors(out.meshes[c], out.rig.cameras[c], &out.frames.cameras[c].color, out.colors[c]);
-    }
-    return out;
-  }();
+const SambaFrame& frame() {
+  static const SambaFrame f = load_samba_frame(0);
   return f;
 }
 
 void BM_Foreground(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   Image<float> out;
   for (auto _ : state) extract_foreground(f.frames.cameras[0].depth, f.rig.depth_unit_m, f.rig.cameras[0], f.rig.volume, {}, out);
 }
 BENCHMARK(BM_Foreground)->Unit(benchmark::kMillisecond);
 
 void BM_BilateralFilter(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   const BilateralKernel kernel(BilateralOptions{});
   Image<float> out;
   for (auto _ : state) bilateral_filter(f.foreground[0], kernel, out);
@@ -70,7 +36,7 @@ void BM_BilateralFilter(benchmark::State& state) {
 BENCHMARK(BM_BilateralFilter)->Unit(benchmark::kMillisecond);
 
 void BM_TriangulateSdc(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   DepthMesh mesh;
   for (auto _ : state) {
     triangulate_sdc(f.foreground[0], f.rig.cameras[0].depth_intrinsics, f.rig.cameras[0].world_from_depth.cast<float>(), {}, mesh);
@@ -79,7 +45,7 @@ void BM_TriangulateSdc(benchmark::State& state) {
 BENCHMARK(BM_TriangulateSdc)->Unit(benchmark::kMillisecond);
 
 void BM_LookupColors(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   std::vector<Rgb8> colors;
   for (auto _ : state) lookup_colors(f.meshes[0], f.rig.cameras[0], &f.frames.cameras[0].color, colors);
 }
@@ -87,7 +53,7 @@ BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
 
 // The ownership scores on pyramid level 1, as the zipper computes them.
 void BM_BorderDistance(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   DepthMesh coarse;
   downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
   OwnershipScore border;
@@ -96,7 +62,7 @@ void BM_BorderDistance(benchmark::State& state) {
 BENCHMARK(BM_BorderDistance)->Unit(benchmark::kMillisecond);
 
 void BM_Smoothness(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   DepthMesh coarse;
   downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
   const ZipperOptions options;
@@ -109,7 +75,7 @@ void BM_Smoothness(benchmark::State& state) {
 BENCHMARK(BM_Smoothness)->Unit(benchmark::kMillisecond);
 
 void BM_DownsampleMesh(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   DepthMesh coarse;
   for (auto _ : state) downsample_mesh(f.meshes[0], 2, 0.03f, coarse);
 }
@@ -119,7 +85,7 @@ BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
 // threads, ownership (0 border, 1 smoothness), depth (0 unfiltered, 1 bilateral-filtered). The
 // reconstruction's defaults are smoothness for unfiltered and border for filtered depth.
 void BM_ZipperFourCameras(benchmark::State& state) {
-  const Frame& f = frame();
+  const SambaFrame& f = frame();
   ZipperScratch scratch;
   std::vector<DepthMesh> meshes;
   const ZipperOptions options{.ownership = state.range(1) ? Ownership::kSmoothness : Ownership::kBorder,

@@ -10,17 +10,11 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
-#include <filesystem>
 #include <string>
 #include <vector>
 
-#include "zipfusion/depth/bilateral.h"
-#include "zipfusion/depth/color_lookup.h"
-#include "zipfusion/depth/foreground.h"
-#include "zipfusion/depth/sdc_mesh.h"
+#include "samba_frame.h"
 #include "zipfusion/fusion/zipper.h"
-#include "zipfusion/io/capture.h"
 
 using namespace zipfusion;
 
@@ -40,22 +34,9 @@ int main(int argc, char** argv) {
     }
   }
   if (repeat < 1) repeat = 1;
-  const Capture capture = Capture::open(std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
-  Rig rig = capture.ground_truth_rig().value_or(capture.rig());
-  rig.volume = capture.rig().volume;
-  const FrameSet frames = capture.load_frame(frame);
-  const int n = capture.camera_count();
-  std::vector<DepthMesh> meshes(n);
-  std::vector<std::vector<Rgb8>> colors(n);
-  const BilateralKernel kernel(BilateralOptions{});
-  for (int c = 0; c < n; ++c) {
-    Image<float> foreground, smoothed;
-    extract_foreground(frames.cameras[c].depth, rig.depth_unit_m, rig.cameras[c], rig.volume, {}, foreground);
-    if (filtered) bilateral_filter(foreground, kernel, smoothed);
-    triangulate_sdc(filtered ? smoothed : foreground, rig.cameras[c].depth_intrinsics, rig.cameras[c].world_from_depth.cast<float>(), {},
-                    meshes[c]);
-    lookup_colors(meshes[c], rig.cameras[c], &frames.cameras[c].color, colors[c]);
-  }
+  const SambaFrame samba = load_samba_frame(frame);
+  const std::vector<DepthMesh>& meshes = filtered ? samba.filtered_meshes : samba.meshes;
+  const int n = static_cast<int>(meshes.size());
   // The reconstruction's default ownership for each input.
   const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness, .num_threads = threads};
   ZipperScratch scratch;
@@ -64,7 +45,7 @@ int main(int argc, char** argv) {
   for (int r = 0; r < repeat; ++r) {
     std::vector<DepthMesh> work = meshes;  // zippering clears bits
     std::vector<ZipperCamera> cameras;
-    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &colors[c], &rig.cameras[c]});
+    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.colors[c], &samba.rig.cameras[c]});
     result = zipper_meshes(cameras, options, scratch);
     redundancy_ms.push_back(result.stats.redundancy_ms);
     clipping_ms.push_back(result.stats.clipping_ms);
