@@ -264,8 +264,10 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
     const float dy = ((static_cast<float>(v) - cy) * zc + y_extra) * inv_fy - q.y();
     return dx * dx + dy * dy + dz * dz < distance2;
   };
+  // Most searches lie wholly inside the image: their cells need no bounds tests.
+  const bool inside = cu - window >= 0 && cv - window >= 0 && cu + window <= last_u && cv + window <= last_v;
   auto cell_has_near = [&](int u, int v) {
-    if (u < 0 || v < 0 || u > last_u || v > last_v) return false;
+    if (!inside && (u < 0 || v < 0 || u > last_u || v > last_v)) return false;
     const int cell = v * width + u;
     const std::uint8_t bits = triangles[cell];
     if (!bits) return false;
