@@ -4,6 +4,8 @@
 // by the kernel benchmarks and zf_zipper_repeat; the capture is found through ZF_SOURCE_DIR.
 
 #include <filesystem>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "zipfusion/depth/bilateral.h"
@@ -24,6 +26,10 @@ struct SambaFrame {
 
 inline SambaFrame load_samba_frame(int frame) {
   const Capture capture = Capture::open(std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
+  if (frame < 0 || frame >= capture.frame_count()) {
+    throw std::out_of_range("samba-4cam: frame " + std::to_string(frame) + ": the capture has frames 0 to " +
+                            std::to_string(capture.frame_count() - 1));
+  }
   SambaFrame out;
   out.rig = capture.ground_truth_rig().value_or(capture.rig());
   out.rig.volume = capture.rig().volume;

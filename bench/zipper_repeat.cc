@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -33,8 +34,17 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (repeat < 1) repeat = 1;
-  const SambaFrame samba = load_samba_frame(frame);
+  if (frame < 0 || repeat < 1 || threads < 0) {
+    std::fprintf(stderr, "zf_zipper_repeat: --frame must be >= 0, --repeat >= 1, --threads >= 0 (0 = all cores)\n");
+    return 2;
+  }
+  SambaFrame samba;
+  try {
+    samba = load_samba_frame(frame);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "zf_zipper_repeat: %s\n", e.what());
+    return 3;
+  }
   const std::vector<DepthMesh>& meshes = filtered ? samba.filtered_meshes : samba.meshes;
   const int n = static_cast<int>(meshes.size());
   // The reconstruction's default ownership for each input.

@@ -52,7 +52,9 @@ struct OwnershipScore {
   int stride = 0;  // width + 2
   int level = 0;
 
+  //! Cell (u, v), u in [−1, width], v in [−1, height] (the border reads 0).
   float& cell(int u, int v) { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
+  const float& cell(int u, int v) const { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
 };
 
 //! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its
@@ -86,8 +88,8 @@ inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
   // u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
   const int u = floor_to_int(cx), v = floor_to_int(cy);
   const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
-  const float* row0 = q.cells.data() + static_cast<size_t>(v + 1) * q.stride + (u + 1);
-  const float* row1 = row0 + q.stride;
+  const float* row0 = &q.cell(u, v);
+  const float* row1 = &q.cell(u, v + 1);
   const float top = row0[0] + fu * (row0[1] - row0[0]);
   const float bottom = row1[0] + fu * (row1[1] - row1[0]);
   return top + fv * (bottom - top);
