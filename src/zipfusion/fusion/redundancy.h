@@ -89,7 +89,7 @@ inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
   const int u = floor_to_int(cx), v = floor_to_int(cy);
   const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
   const float* row0 = &q.cell(u, v);
-  const float* row1 = &q.cell(u, v + 1);
+  const float* row1 = row0 + q.stride;  // cell (u, v + 1)
   const float top = row0[0] + fu * (row0[1] - row0[0]);
   const float bottom = row1[0] + fu * (row1[1] - row1[0]);
   return top + fv * (bottom - top);
