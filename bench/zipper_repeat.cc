@@ -8,6 +8,7 @@
 // faster can be checked to give the same mesh.
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -65,6 +66,21 @@ int main(int argc, char** argv) {
   std::printf("samba-4cam frame %d, %s, %d pairs: %zu triangles, %d removed as redundant, %d taken into seams, %d seam triangles\n", frame,
               filtered ? "bilateral-filtered, border ownership" : "unfiltered, smoothness ownership", result.stats.pairs,
               result.mesh.triangles.size(), result.stats.redundant_removed, result.stats.seam_taken, result.stats.seam_added);
+  // A fingerprint of the mesh's triangles that does not depend on their order (CGAL's face order
+  // may change where the triangulation does not): a sum of mixed hashes of each triangle, rotated
+  // to start at its lowest vertex so that its orientation counts.
+  std::uint64_t fingerprint = 0;
+  for (const Eigen::Vector3i& t : result.mesh.triangles) {
+    const int first = t[0] < t[1] ? (t[0] < t[2] ? 0 : 2) : (t[1] < t[2] ? 1 : 2);
+    std::uint64_t h = 0x9e3779b97f4a7c15ull;
+    for (int k = 0; k < 3; ++k) {
+      h ^= static_cast<std::uint32_t>(t[(first + k) % 3]);
+      h *= 0xff51afd7ed558ccdull;
+      h ^= h >> 33;
+    }
+    fingerprint += h;
+  }
+  std::printf("triangle fingerprint %016llx\n", static_cast<unsigned long long>(fingerprint));
   std::printf("median of %d on %d thread(s): redundancy %.2f ms, clipping %.2f ms\n", repeat, threads, redundancy_ms[repeat / 2],
               clipping_ms[repeat / 2]);
   return 0;
