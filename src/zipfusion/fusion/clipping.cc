@@ -220,9 +220,13 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, constraints);
   if (seam.vertices.size() < 3) return seam;
 
-  auto position = [&](const PixelVertex& v) -> const Eigen::Vector3f& {
-    return (v.camera == a.camera ? a.mesh : b.mesh)->points[v.pixel];
-  };
+  // The seam vertices' points, gathered once: each face reads three, and from the meshes those
+  // were cache misses.
+  std::vector<Eigen::Vector3f> positions(seam.vertices.size());
+  for (size_t i = 0; i < seam.vertices.size(); ++i) {
+    const PixelVertex& v = seam.vertices[i];
+    positions[i] = (v.camera == a.camera ? a.mesh : b.mesh)->points[v.pixel];
+  }
   // Where the seam points are laid out in 2-D: each on its own pixel's ray at the mean depth of
   // the surface around it. Noise moves a point along its camera's ray, which a view from another
   // direction sees as a sideways shift larger than the pixel spacing (about 7 mm for the Kinect's
@@ -254,11 +258,11 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   if (behind) {
     // PCA plane of the seam (the paper's projection).
     Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-    for (const PixelVertex& v : seam.vertices) mean += position(v);
-    mean /= static_cast<float>(seam.vertices.size());
+    for (const Eigen::Vector3f& p : positions) mean += p;
+    mean /= static_cast<float>(positions.size());
     Eigen::Matrix3f covariance = Eigen::Matrix3f::Zero();
-    for (const PixelVertex& v : seam.vertices) {
-      const Eigen::Vector3f d = position(v) - mean;
+    for (const Eigen::Vector3f& p : positions) {
+      const Eigen::Vector3f d = p - mean;
       covariance += d * d.transpose();
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> pca(covariance);
@@ -317,9 +321,7 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
     int index[3];
     for (int k = 0; k < 3; ++k) index[k] = face->vertex(k)->info().index;
     if (index[0] < 0 || index[1] < 0 || index[2] < 0) continue;  // at a crossing of two constraints
-    const Eigen::Vector3f& p0 = position(seam.vertices[index[0]]);
-    const Eigen::Vector3f& p1 = position(seam.vertices[index[1]]);
-    const Eigen::Vector3f& p2 = position(seam.vertices[index[2]]);
+    const Eigen::Vector3f &p0 = positions[index[0]], &p1 = positions[index[1]], &p2 = positions[index[2]];
     if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) continue;
     const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
     // Over a kept triangle of either mesh: the seam would double the surface there.

@@ -10,11 +10,9 @@ namespace zipfusion {
 namespace {
 
 
-// Marks triangle `id` for the next worklist once per pass.
+// Queues triangle `id` for the next worklist once per pass.
 void enqueue(FrbrScratch& s, int id) {
-  if (s.stamp[id] == s.current_stamp) return;
-  s.stamp[id] = s.current_stamp;
-  s.next.push_back(id);
+  if (!s.queued.test_and_set(id)) s.next.push_back(id);
 }
 
 
@@ -36,7 +34,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     const float x = static_cast<float>(cell % mesh.width) + offset, y = static_cast<float>(cell / mesh.width) + offset;
     if (owner_is_other(a, x, y, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
-  ++s.current_stamp;
+  for (int id : s.worklist) s.queued.clear(id);  // queued by the previous pass
   s.next.clear();
   for (int id : s.removals) mesh.triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));
   for (int id : s.removals) {
@@ -54,18 +52,20 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
 }
 
 void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
-  const size_t ids = mesh.triangles.size() * 2;
-  if (s.stamp.size() < ids) s.stamp.assign(ids, 0);
-  ++s.current_stamp;
+  s.queued.reserve(mesh.triangles.size() * 2);
   s.worklist.clear();
   if (all_triangles) {
     for_each_triangle_id(mesh, [&](int id) { s.worklist.push_back(id); });
     return;
   }
+  // The frontier holds ids more than once; the worklist each once, and it stays marked as queued
+  // (the first sweep clears it).
   for (int id : s.frontier) {
-    if (s.stamp[id] == s.current_stamp) continue;
-    s.stamp[id] = s.current_stamp;
-    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) s.worklist.push_back(id);
+    if (s.queued.test(id)) continue;
+    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) {
+      s.queued.test_and_set(id);
+      s.worklist.push_back(id);
+    }
   }
 }
 

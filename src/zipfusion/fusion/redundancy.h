@@ -249,6 +249,30 @@ bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, 
 //! every other cell).
 double overlap_share(const MeshView& a, const MeshView& b, float distance);
 
+//! A set of marks on the integers [0, size) as bits, for visits: a test reads one of 64 times
+//! fewer bytes than a per-item stamp (a 640×480 mesh's triangles in 77 kB, which stay in cache,
+//! against 2.4 MB of stamps, whose reads missed). Cleared item by item by whoever set the marks.
+class MarkBits {
+ public:
+  //! Makes room for items [0, size); all marks are clear after a resize that grows.
+  void reserve(size_t size) {
+    if (words_.size() * 64 < size) words_.assign((size + 63) / 64, 0);
+  }
+  //! Marks item i; returns whether it was marked already.
+  bool test_and_set(int i) {
+    std::uint64_t& word = words_[static_cast<size_t>(i) >> 6];
+    const std::uint64_t bit = std::uint64_t{1} << (i & 63);
+    const bool was = (word & bit) != 0;
+    word |= bit;
+    return was;
+  }
+  bool test(int i) const { return (words_[static_cast<size_t>(i) >> 6] >> (i & 63)) & 1; }
+  void clear(int i) { words_[static_cast<size_t>(i) >> 6] &= ~(std::uint64_t{1} << (i & 63)); }
+
+ private:
+  std::vector<std::uint64_t> words_;
+};
+
 //! Scratch space of one camera for FRBR, reused across frames.
 struct FrbrScratch {
   std::vector<int> worklist, next, removals;
@@ -256,8 +280,7 @@ struct FrbrScratch {
   // began (collect_boundary_triangles) plus every triangle next to a removal since. Pairs start
   // from it instead of scanning the whole bit matrix.
   std::vector<int> frontier;
-  std::vector<std::uint32_t> stamp;
-  std::uint32_t current_stamp = 0;
+  MarkBits queued;  // per triangle id; clear between sweeps but for the worklist's ids
 };
 
 struct FrbrResult {
