@@ -27,14 +27,6 @@ using Delaunay = CGAL::Constrained_Delaunay_triangulation_2<Kernel, Triangulatio
 // found the same seams on samba-4cam at 25 % more time.
 constexpr int kSeamWindow = 2;
 
-void next_stamp(SeamScratch& s, size_t size) {
-  if (s.stamp.size() < size) s.stamp.assign(size, 0);
-  if (++s.current == 0) {
-    std::fill(s.stamp.begin(), s.stamp.end(), 0);
-    s.current = 1;
-  }
-}
-
 // The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
 // meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
 // change until both are), and each seam reads both lists.
@@ -59,11 +51,12 @@ void select_seeds(const MeshView& view, const OverlapMask& mask, SeamScratch& s)
 void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_seeds, float distance, SeamScratch& s) {
   const DepthMesh& mesh = *a.mesh;
   const Rigid3f b_from_a_camera = b_from_a(a, b), a_from_b_camera = b_from_a(b, a);
-  next_stamp(s, mesh.triangles.size() * 2);
+  s.marks.reserve(mesh.triangles.size() * 2);
   s.taken.clear();
+  s.visited.clear();
   auto visit = [&](int id) {
-    if (s.stamp[id] == s.current) return;
-    s.stamp[id] = s.current;
+    if (s.marks.test_and_set(id)) return;
+    s.visited.push_back(id);
     const int cell = cell_of(id);
     if (!(mesh.triangles[cell] & bit_of(id))) return;
     const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit_of(id)));
@@ -77,6 +70,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector
     visit(triangle_id(under, kUpperTriangle));
     visit(triangle_id(under, kLowerTriangle));
   }
+  for (int id : s.visited) s.marks.clear(id);
 }
 
 // Does any triangle of `mesh` use pixel p as a vertex?
@@ -96,14 +90,12 @@ bool pixel_has_triangle(const DepthMesh& mesh, int p) {
 // two noisy layers.
 void take_triangles(const MeshView& view, const MeshView& other, float distance, SeamScratch& s, Seam& seam) {
   const DepthMesh& mesh = *view.mesh;
-  next_stamp(s, mesh.triangles.size() * 2);
   if (s.seam_index.size() < mesh.triangles.size()) s.seam_index.resize(mesh.triangles.size());
   for (int id : s.taken) {
     int pixels[3];
     triangle_pixels(cell_of(id), mesh.width, bit_of(id), pixels);
     for (int p : pixels) {
-      if (s.stamp[p] == s.current) continue;
-      s.stamp[p] = s.current;
+      if (s.marks.test_and_set(p)) continue;
       if (!pixel_has_triangle(mesh, p)) {
         const ViewPoint point = project_into(other, mesh.points[p]);
         const float x = static_cast<float>(p % mesh.width), y = static_cast<float>(p / mesh.width);
@@ -132,7 +124,7 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
   const DepthMesh& mesh = *view.mesh;
   const int width = mesh.width;
   auto seam_vertex = [&](int pixel) {
-    if (s.stamp[pixel] != s.current) return -1;
+    if (!s.marks.test(pixel)) return -1;
     const int index = s.seam_index[pixel];
     return index >= first_vertex && index < end_vertex && seam.vertices[index].pixel == pixel ? index : -1;
   };
@@ -161,6 +153,15 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
       const int j = seam_vertex(edge.other);
       if (j > index) edges.emplace_back(index, j);
     }
+  }
+}
+
+// Clears the marks take_triangles set: the pixels of the taken triangles.
+void clear_pixel_marks(const MeshView& view, SeamScratch& s) {
+  for (int id : s.taken) {
+    int pixels[3];
+    triangle_pixels(cell_of(id), view.mesh->width, bit_of(id), pixels);
+    for (int p : pixels) s.marks.clear(p);
   }
 }
 
@@ -218,6 +219,8 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   std::vector<std::pair<int, int>> constraints;
   add_kept_edges(a, scratch_a, 0, a_end, seam, constraints);
   add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, constraints);
+  clear_pixel_marks(a, scratch_a);
+  clear_pixel_marks(b, scratch_b);
   if (seam.vertices.size() < 3) return seam;
 
   // The seam vertices' points, gathered once: each face reads three, and from the meshes those

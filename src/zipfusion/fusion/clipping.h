@@ -42,10 +42,12 @@ struct Seam {
 
 //! Scratch space of one camera for clipping, reused across frames.
 struct SeamScratch {
-  std::vector<std::uint32_t> stamp;  // per triangle id, then per pixel
-  std::uint32_t current = 0;
+  // Per triangle id while the seam is found (cleared through `visited`), then per pixel: the
+  // taken triangles' pixels, until the kept edges are found (cleared through `taken`).
+  MarkBits marks;
+  std::vector<int> visited;
   std::vector<int> taken;
-  std::vector<int> seam_index;  // per pixel: index in Seam::vertices (valid where stamped)
+  std::vector<int> seam_index;  // per pixel: index in Seam::vertices (valid where marked)
   // Candidate boundary triangles, the seeds of the seams: set once per frame before clipping by
   // collect_boundary_triangles (instead of scanning the whole bit matrix for every pair) and
   // grown by each clipping.
