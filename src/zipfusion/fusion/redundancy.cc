@@ -26,12 +26,13 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
     const int cell = cell_of(id);
     const TriangleBit bit = bit_of(id);
     if (!(mesh.triangles[cell] & bit)) continue;
-    if (!mask.covers(cell, mesh.width, a.level)) continue;
+    const int v = cell / mesh.width, u = cell - v * mesh.width;
+    if (!mask.covers_at(u, v, a.level)) continue;
     if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
-    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit));
+    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, u, v, bit));
     // The centre lies a third (upper) or two thirds (lower) into the cell.
     const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
-    const float x = static_cast<float>(cell % mesh.width) + offset, y = static_cast<float>(cell / mesh.width) + offset;
+    const float x = static_cast<float>(u) + offset, y = static_cast<float>(v) + offset;
     if (owner_is_other(a, x, y, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
   }
   for (int id : s.worklist) s.queued.clear(id);  // queued by the previous pass

@@ -145,13 +145,15 @@ inline Rigid3f b_from_a(const MeshView& a, const MeshView& b) { return b.depth_f
 //! Element function: the centre of triangle `bit` of cell `cell` of `view` in its camera frame,
 //! from the depth of its three pixels alone (the world points of the mesh are 3 times the memory,
 //! and the searches are bound by memory reads).
-inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell, TriangleBit bit) {
+//! The cell is given by its column and row (a sweep has them already: an integer division costs
+//! more than all of this arithmetic).
+inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell_u, int cell_v, TriangleBit bit) {
   const DepthMesh& mesh = *view.mesh;
   const int width = mesh.width;
-  const float* d = mesh.depth.data() + cell;
+  const float* d = mesh.depth.data() + cell_v * width + cell_u;
   const float z00 = d[0], z10 = d[1], z01 = d[width];
-  const float u = static_cast<float>(cell % width) - static_cast<float>(view.intrinsics.cx);
-  const float v = static_cast<float>(cell / width) - static_cast<float>(view.intrinsics.cy);
+  const float u = static_cast<float>(cell_u) - static_cast<float>(view.intrinsics.cx);
+  const float v = static_cast<float>(cell_v) - static_cast<float>(view.intrinsics.cy);
   const float third = 1.0f / 3.0f;
   float sum, x_extra, y_extra;  // the three depths; the corners' extra pixel offsets weighted by depth
   if (bit == kUpperTriangle) {  // (u, v), (u, v + 1), (u + 1, v)
@@ -167,6 +169,12 @@ inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell, Tr
   return {(u * sum + x_extra) * third / static_cast<float>(view.intrinsics.fx), (v * sum + y_extra) * third / static_cast<float>(view.intrinsics.fy),
           sum * third};
 }
+
+//! The same for cell index `cell`.
+inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell, TriangleBit bit) {
+  const int width = view.mesh->width;
+  return camera_triangle_centre(view, cell % width, cell / width, bit);
+}
 //! Where, coarsely, another camera sees the surface of a camera's mesh: per cell of a coarse view
 //! of the mesh, whether the other camera has depth close to the mesh's point there, dilated by
 //! one cell (so the window searches at the other mesh's border stay inside). Redundancy tests and
@@ -178,12 +186,14 @@ struct OverlapMask {
   int width = 0;
   int level = 0;
 
-  //! Does the mask cover cell `cell` of a view at `view_level` (≤ level), `view_width` cells wide?
-  bool covers(int cell, int view_width, int view_level) const {
+  //! Does the mask cover cell (u, v) of a view at `view_level` (≤ level)?
+  bool covers_at(int u, int v, int view_level) const {
     if (cells.empty()) return true;
     const int shift = level - view_level;
-    return cells[((cell / view_width) >> shift) * width + ((cell % view_width) >> shift)] != 0;
+    return cells[(v >> shift) * width + (u >> shift)] != 0;
   }
+  //! The same for cell index `cell` of a view `view_width` cells wide.
+  bool covers(int cell, int view_width, int view_level) const { return covers_at(cell % view_width, cell / view_width, view_level); }
 };
 
 //! Fills `mask` for view `a` (a coarse level) against camera `b` (any level): a cell is set where
