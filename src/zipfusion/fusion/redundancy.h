@@ -20,6 +20,7 @@
 //! overlap is split where both see equally well, the meshes meet there with no gap, and one mesh
 //! is never removed where the other does not take over.
 
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -81,9 +82,17 @@ inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uin
 
 //! Element function: the score at full-resolution pixel coordinates (x, y), bilinear between cell
 //! centres; 0 outside the image.
+inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel);
+
+//! The same, at full-resolution pixel coordinates.
 inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
-  const float scale = 1.0f / static_cast<float>(1 << q.level);
-  const float cx = x * scale - 0.5f, cy = y * scale - 0.5f;
+  return ownership_score_at(q, x, y, 1.0f / static_cast<float>(1 << q.level));
+}
+
+//! The same, at coordinates in pixels of another level: `cells_per_pixel` = 2^(level − q.level)
+//! (a power of two, so the result is exactly that of the full-resolution coordinates).
+inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel) {
+  const float cx = x * cells_per_pixel - 0.5f, cy = y * cells_per_pixel - 0.5f;
   if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(q.width) && cy < static_cast<float>(q.height))) return 0.0f;
   // u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
   const int u = floor_to_int(cx), v = floor_to_int(cy);
@@ -106,8 +115,10 @@ struct MeshView {
 
   //! The ownership score at (x, y) in this level's pixel coordinates.
   float score_at(float x, float y) const {
-    const float scale = static_cast<float>(1 << level);
-    return ownership != nullptr ? ownership_score_at(*ownership, x * scale, y * scale) : 0.0f;
+    if (ownership == nullptr) return 0.0f;
+    // 2^(level − ownership level) made from its exponent bits: no division (levels are small).
+    const float cells_per_pixel = std::bit_cast<float>(static_cast<std::uint32_t>(127 + level - ownership->level) << 23);
+    return ownership_score_at(*ownership, x, y, cells_per_pixel);
   }
 };
 
