@@ -177,8 +177,8 @@ inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell_u, 
     x_extra = z10 + z11;
     y_extra = z01 + z11;
   }
-  return {(u * sum + x_extra) * third / static_cast<float>(view.intrinsics.fx), (v * sum + y_extra) * third / static_cast<float>(view.intrinsics.fy),
-          sum * third};
+  const float x_scale = third / static_cast<float>(view.intrinsics.fx), y_scale = third / static_cast<float>(view.intrinsics.fy);
+  return {(u * sum + x_extra) * x_scale, (v * sum + y_extra) * y_scale, sum * third};
 }
 
 //! The same for cell index `cell`.
