@@ -174,13 +174,22 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float sam
   const float centre = mesh.depth[pixel];
   float sum = 0;
   int count = 0;
-  for (int y = std::max(0, v - kRadius); y <= std::min(mesh.height - 1, v + kRadius); ++y) {
-    const float* row = mesh.depth.data() + y * mesh.width;
-    for (int x = std::max(0, u - kRadius); x <= std::min(mesh.width - 1, u + kRadius); ++x) {
-      if (row[x] > 0 && std::abs(row[x] - centre) < same_surface) {
-        sum += row[x];
-        ++count;
-      }
+  // Without branches (which pixels belong is unpredictable at a border): a pixel left out adds
+  // exactly 0, so the sum is the same as adding only the others, in the same order.
+  auto add = [&](float z) {
+    const bool same = z > 0 && std::abs(z - centre) < same_surface;
+    sum += same ? z : 0.0f;
+    count += same;
+  };
+  if (u >= kRadius && v >= kRadius && u + kRadius < mesh.width && v + kRadius < mesh.height) {
+    const float* row = mesh.depth.data() + pixel - kRadius * mesh.width - kRadius;
+    for (int y = 0; y <= 2 * kRadius; ++y, row += mesh.width) {
+      for (int x = 0; x <= 2 * kRadius; ++x) add(row[x]);
+    }
+  } else {
+    for (int y = std::max(0, v - kRadius); y <= std::min(mesh.height - 1, v + kRadius); ++y) {
+      const float* row = mesh.depth.data() + y * mesh.width;
+      for (int x = std::max(0, u - kRadius); x <= std::min(mesh.width - 1, u + kRadius); ++x) add(row[x]);
     }
   }
   return unproject(view.intrinsics, static_cast<float>(u), static_cast<float>(v), sum / static_cast<float>(count));
