@@ -244,8 +244,7 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
   const Eigen::Vector3f& q = p.in_camera;
   if (!(q.z() > 0) || !(std::abs(p.x) < 1e6f && std::abs(p.y) < 1e6f)) return false;
   const DepthMesh& mesh = *view.mesh;
-  const float fx = static_cast<float>(view.intrinsics.fx), fy = static_cast<float>(view.intrinsics.fy);
-  const float cx = static_cast<float>(view.intrinsics.cx), cy = static_cast<float>(view.intrinsics.cy);
+  const float fx = view.fx, cx = view.cx, cy = view.cy;
   const int window = std::clamp(ceil_to_int(distance * fx / q.z()), 1, max_window);
   // Triangle centres sit at 1/3 and 2/3 of a cell, so the cells whose index is within the window
   // of floor(pixel) hold every centre within `window` pixels. The same surface is usually found
@@ -253,7 +252,7 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
   const int cu = floor_to_int(p.x), cv = floor_to_int(p.y);
   const int width = mesh.width, last_u = mesh.width - 2, last_v = mesh.height - 2;
   const float distance2 = distance * distance;
-  const float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy, third = 1.0f / 3.0f;
+  const float inv_fx = view.inv_fx, inv_fy = view.inv_fy, third = 1.0f / 3.0f;
   const float* depth = mesh.depth.data();
   const std::uint8_t* triangles = mesh.triangles.data();
   // Is the centre of a triangle with mean depth zc, whose centre lies `x_extra`, `y_extra` (in

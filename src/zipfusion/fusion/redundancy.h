@@ -112,6 +112,12 @@ struct MeshView {
   const OwnershipScore* ownership = nullptr;  // null: this view never owns what another sees
   int camera = 0;                          // breaks ownership ties
   int level = 0;                           // pyramid level: cells are 2^level pixels
+  // The intrinsics as the element functions use them, converted once per view rather than at
+  // every call (each conversion and division sat on a search's critical path).
+  float fx = static_cast<float>(intrinsics.fx), fy = static_cast<float>(intrinsics.fy);
+  float cx = static_cast<float>(intrinsics.cx), cy = static_cast<float>(intrinsics.cy);
+  float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy;
+  float third_over_fx = (1.0f / 3.0f) / fx, third_over_fy = (1.0f / 3.0f) / fy;
 
   //! The ownership score at (x, y) in this level's pixel coordinates.
   float score_at(float x, float y) const {
@@ -137,8 +143,8 @@ inline ViewPoint project_camera_point(const MeshView& view, const Eigen::Vector3
   out.in_camera = p_in_camera;
   if (!(out.in_camera.z() > 0)) return out;
   const float inv_z = 1.0f / out.in_camera.z();
-  out.x = static_cast<float>(view.intrinsics.fx) * out.in_camera.x() * inv_z + static_cast<float>(view.intrinsics.cx);
-  out.y = static_cast<float>(view.intrinsics.fy) * out.in_camera.y() * inv_z + static_cast<float>(view.intrinsics.cy);
+  out.x = view.fx * out.in_camera.x() * inv_z + view.cx;
+  out.y = view.fy * out.in_camera.y() * inv_z + view.cy;
   // Compare as floats before converting: far outside points must not overflow the int.
   if (!(out.x >= 0 && out.y >= 0 && out.x < static_cast<float>(view.mesh->width - 1) && out.y < static_cast<float>(view.mesh->height - 1))) {
     return out;
@@ -163,8 +169,8 @@ inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell_u, 
   const int width = mesh.width;
   const float* d = mesh.depth.data() + cell_v * width + cell_u;
   const float z00 = d[0], z10 = d[1], z01 = d[width];
-  const float u = static_cast<float>(cell_u) - static_cast<float>(view.intrinsics.cx);
-  const float v = static_cast<float>(cell_v) - static_cast<float>(view.intrinsics.cy);
+  const float u = static_cast<float>(cell_u) - view.cx;
+  const float v = static_cast<float>(cell_v) - view.cy;
   const float third = 1.0f / 3.0f;
   float sum, x_extra, y_extra;  // the three depths; the corners' extra pixel offsets weighted by depth
   if (bit == kUpperTriangle) {  // (u, v), (u, v + 1), (u + 1, v)
@@ -177,8 +183,7 @@ inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell_u, 
     x_extra = z10 + z11;
     y_extra = z01 + z11;
   }
-  const float x_scale = third / static_cast<float>(view.intrinsics.fx), y_scale = third / static_cast<float>(view.intrinsics.fy);
-  return {(u * sum + x_extra) * x_scale, (v * sum + y_extra) * y_scale, sum * third};
+  return {(u * sum + x_extra) * view.third_over_fx, (v * sum + y_extra) * view.third_over_fy, sum * third};
 }
 
 //! The same for cell index `cell`.
