@@ -158,6 +158,8 @@ cv::Rect start_score(const DepthMesh& mesh, int level, int pad, OwnershipScore& 
   out.width = mesh.width;
   out.height = mesh.height;
   out.stride = mesh.width + 2;
+  out.width_f = static_cast<float>(mesh.width);
+  out.height_f = static_cast<float>(mesh.height);
   out.level = level;
   out.cells.assign(static_cast<size_t>(out.stride) * (mesh.height + 2), 0.0f);
   const PixelBox depth_box = mesh.box();

@@ -52,6 +52,7 @@ struct OwnershipScore {
   int height = 0;
   int stride = 0;  // width + 2
   int level = 0;
+  float width_f = 0, height_f = 0;  // width and height as floats, for the lookup's range test
 
   //! Cell (u, v), u in [−1, width], v in [−1, height] (the border reads 0).
   float& cell(int u, int v) { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
@@ -93,7 +94,7 @@ inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
 //! (a power of two, so the result is exactly that of the full-resolution coordinates).
 inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel) {
   const float cx = x * cells_per_pixel - 0.5f, cy = y * cells_per_pixel - 0.5f;
-  if (!(cx > -1.0f && cy > -1.0f && cx < static_cast<float>(q.width) && cy < static_cast<float>(q.height))) return 0.0f;
+  if (!(cx > -1.0f && cy > -1.0f && cx < q.width_f && cy < q.height_f)) return 0.0f;
   // u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
   const int u = floor_to_int(cx), v = floor_to_int(cy);
   const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
@@ -118,6 +119,9 @@ struct MeshView {
   float cx = static_cast<float>(intrinsics.cx), cy = static_cast<float>(intrinsics.cy);
   float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy;
   float third_over_fx = (1.0f / 3.0f) / fx, third_over_fy = (1.0f / 3.0f) / fy;
+  // The range of projections whose 2×2 pixels lie in the image, for project_camera_point.
+  float last_x = mesh != nullptr ? static_cast<float>(mesh->width - 1) : 0.0f;
+  float last_y = mesh != nullptr ? static_cast<float>(mesh->height - 1) : 0.0f;
 
   //! The ownership score at (x, y) in this level's pixel coordinates.
   float score_at(float x, float y) const {
@@ -146,7 +150,7 @@ inline ViewPoint project_camera_point(const MeshView& view, const Eigen::Vector3
   out.x = view.fx * out.in_camera.x() * inv_z + view.cx;
   out.y = view.fy * out.in_camera.y() * inv_z + view.cy;
   // Compare as floats before converting: far outside points must not overflow the int.
-  if (!(out.x >= 0 && out.y >= 0 && out.x < static_cast<float>(view.mesh->width - 1) && out.y < static_cast<float>(view.mesh->height - 1))) {
+  if (!(out.x >= 0 && out.y >= 0 && out.x < view.last_x && out.y < view.last_y)) {
     return out;
   }
   out.cell = static_cast<int>(out.y) * view.mesh->width + static_cast<int>(out.x);
