@@ -197,22 +197,22 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float sam
 
 }  // namespace
 
-bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance) {
+bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance, const KeptAt& kept) {
   if (p.cell < 0) return false;
   const DepthMesh& mesh = *view.mesh;
   const float fu = p.x - std::floor(p.x), fv = p.y - std::floor(p.y);
   const TriangleBit bit = fu + fv < 1.0f ? kUpperTriangle : kLowerTriangle;
-  if (!(mesh.triangles[p.cell] & bit)) return false;
+  if (!(mesh.triangles[p.cell] & bit) && !kept.taken_later(triangle_id(p.cell, bit))) return false;
   int pixels[3];
   triangle_pixels(p.cell, mesh.width, bit, pixels);
   const float mean_depth = (mesh.depth[pixels[0]] + mesh.depth[pixels[1]] + mesh.depth[pixels[2]]) / 3.0f;
   return std::abs(mean_depth - p.in_camera.z()) < tolerance;
 }
 
-Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                     const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
-                     SeamScratch& scratch_b) {
-  Seam seam;
+TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
+                    SeamScratch& scratch_a, SeamScratch& scratch_b) {
+  TakenSeam taken;
+  Seam& seam = taken.seam;
   // Both seams are found against the meshes as FRBR left them, then taken out together.
   select_seeds(a, mask_a, scratch_a);
   select_seeds(b, mask_b, scratch_b);
@@ -225,12 +225,20 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
   take_triangles(a, b, options.ownership_distance, scratch_a, seam);
   const int a_end = static_cast<int>(seam.vertices.size());
   take_triangles(b, a, options.ownership_distance, scratch_b, seam);
-  std::vector<std::pair<int, int>> constraints;
-  add_kept_edges(a, scratch_a, 0, a_end, seam, constraints);
-  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, constraints);
+  add_kept_edges(a, scratch_a, 0, a_end, seam, taken.constraints);
+  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints);
   clear_pixel_marks(a, scratch_a);
   clear_pixel_marks(b, scratch_b);
-  if (seam.vertices.size() < 3) return seam;
+  taken.taken_a = scratch_a.taken;
+  taken.taken_b = scratch_b.taken;
+  return taken;
+}
+
+void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
+                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, TakenSeam& taken) {
+  Seam& seam = taken.seam;
+  const std::vector<std::pair<int, int>>& constraints = taken.constraints;
+  if (seam.vertices.size() < 3) return;
 
   // The seam vertices' points, gathered once: each face reads three, and from the meshes those
   // were cache misses.
@@ -340,8 +348,8 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
     if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) continue;
     const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
     // Over a kept triangle of either mesh: the seam would double the surface there.
-    if (covered_by_triangle(a, project_into(a, centroid), options.clipping_distance) ||
-        covered_by_triangle(b, project_into(b, centroid), options.clipping_distance)) {
+    if (covered_by_triangle(a, project_into(a, centroid), options.clipping_distance, kept_a) ||
+        covered_by_triangle(b, project_into(b, centroid), options.clipping_distance, kept_b)) {
       continue;
     }
     // CGAL's faces are counter-clockwise in the 2-D coordinates; with image-like axes (y down) a
@@ -349,7 +357,14 @@ Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const M
     // orients the whole seam consistently, slivers included (a 3-D normal test would not).
     seam.triangles.emplace_back(index[0], index[2], index[1]);
   }
-  return seam;
+}
+
+Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
+                     const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
+                     SeamScratch& scratch_b) {
+  TakenSeam taken = take_seam(a, b, options, mask_a, mask_b, scratch_a, scratch_b);
+  stitch_seam(a, centre_a, b, centre_b, options, {}, {}, taken);
+  return std::move(taken.seam);
 }
 
 }  // namespace zipfusion

@@ -55,14 +55,42 @@ struct SeamScratch {
   std::vector<int> seeds;  // the current pair's: boundary triangles inside its overlap mask
 };
 
-//! Element function: is point p (projected into `view`) covered by an existing triangle of `view`
-//! (the triangle under its projection, with a mean depth within `tolerance` of p's)?
-bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance);
+//! Which triangles of a mesh count as kept when a seam is triangulated after later seams have
+//! already taken theirs out of the same mesh: those still in its bit matrix, and those a later
+//! seam took (`taken_round`, per triangle id: the 1-based round of the seam that took it, 0 for
+//! none; a seam of round r sees the ones with a later round as kept). Default: the bit matrix.
+struct KeptAt {
+  const std::uint8_t* taken_round = nullptr;
+  int round = 0;
+  bool taken_later(int id) const { return taken_round != nullptr && taken_round[id] > round; }
+};
 
-//! Takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out of both meshes
-//! and returns the triangles that stitch them; the views' camera indices label the seam's
-//! vertices. `centre_a`, `centre_b`: the cameras' centres in the world. `mask_a` (`mask_b`): where
-//! b sees a (a sees b); seams start only inside.
+//! Element function: is point p (projected into `view`) covered by a kept triangle of `view`
+//! (the triangle under its projection, with a mean depth within `tolerance` of p's)?
+bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance, const KeptAt& kept = {});
+
+//! A seam between its two phases: its vertices chosen and its triangles not yet made.
+struct TakenSeam {
+  Seam seam;                                      // vertices and triangles_taken; no triangles yet
+  std::vector<std::pair<int, int>> constraints;   // the kept edges between seam vertices
+  std::vector<int> taken_a, taken_b;              // triangle ids taken out of each mesh
+};
+
+//! The first phase: takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out
+//! of both meshes and chooses the seam's vertices (labelled with the views' camera indices) and
+//! the kept edges it must contain. `mask_a` (`mask_b`): where b sees a (a sees b); seams start
+//! only inside. Seams of pairs that share a camera must take in a fixed order.
+TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
+                    SeamScratch& scratch_a, SeamScratch& scratch_b);
+
+//! The second phase: the seam's triangles (Delaunay), into taken.seam. Reads the meshes only, so
+//! any number run at once; `kept_a`, `kept_b` say which triangles counted as kept when the seam
+//! was taken. `centre_a`, `centre_b`: the cameras' centres in the world.
+void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
+                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, TakenSeam& taken);
+
+//! Both phases at once: the seam's triangles between `a` and `b`, with the triangles it replaces
+//! taken out of both meshes.
 Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
                      const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
                      SeamScratch& scratch_b);

@@ -146,6 +146,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     return scratch.masks[std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin()];
   };
   const auto rounds = schedule_pairs(result.pairs);
+  // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
+  // 2n − 3 rounds for n cameras).
+  if (rounds.size() > 254) throw InvalidInput("zipper: more than 254 rounds of camera pairs (too many cameras)");
   result.stats.overlap_ms = ms_since(t);
 
   // Coarse to fine FRBR.
@@ -186,22 +189,63 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const int c = active[i];
     collect_boundary_triangles(*cameras[c].mesh, scratch.cameras[c].seam.boundary);
   }, options.num_threads);
-  std::vector<Seam> seams(result.pairs.size());
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
                                  .ownership_distance = d_r,
                                  .same_surface = static_cast<float>(options.sdc_max_depth_jump_m)};
-  for (const auto& round : rounds) {
+  // Two phases. The seams take their triangles out of the meshes in rounds (the pairs of a round
+  // share no camera, so each mesh is edited in a fixed order); each taken triangle is marked
+  // with its round. Then every seam is triangulated at once, the pairs spread over the threads by
+  // their number of points: rounds of unequal pairs (or a round of one, with five pairs) left a
+  // thread idle, and the Delaunay phase is about 70 % of clipping. A seam triangulated after
+  // later rounds took more counts those later-taken triangles as kept, as they were for it.
+  std::vector<TakenSeam> taken(result.pairs.size());
+  std::vector<int> round_of_pair(result.pairs.size(), 0);
+  auto pair_index_of = [&](const std::pair<int, int>& pair) {
+    return static_cast<size_t>(std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin());
+  };
+  for (int c : active) scratch.cameras[c].taken_round.resize(cameras[c].mesh->triangles.size() * 2, 0);
+  for (size_t r = 0; r < rounds.size(); ++r) {
+    const auto& round = rounds[r];
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
       const auto [a, b] = round[i];
-      const size_t pair_index = std::find(result.pairs.begin(), result.pairs.end(), round[i]) - result.pairs.begin();
-      seams[pair_index] = clip_and_stitch(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
-                                          cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
-                                          scratch.masks[pair_index].first, scratch.masks[pair_index].second,
-                                          scratch.cameras[a].seam, scratch.cameras[b].seam);
+      const size_t pair_index = pair_index_of(round[i]);
+      taken[pair_index] = take_seam(views[a][0], views[b][0], seam_options, scratch.masks[pair_index].first, scratch.masks[pair_index].second,
+                                    scratch.cameras[a].seam, scratch.cameras[b].seam);
+      round_of_pair[pair_index] = static_cast<int>(r) + 1;
+      for (int id : taken[pair_index].taken_a) scratch.cameras[a].taken_round[id] = static_cast<std::uint8_t>(r + 1);
+      for (int id : taken[pair_index].taken_b) scratch.cameras[b].taken_round[id] = static_cast<std::uint8_t>(r + 1);
     }, options.num_threads);
   }
-  for (const Seam& seam : seams) result.stats.seam_taken += seam.triangles_taken;
+  // Longest first, each to the least loaded thread.
+  const int stitch_threads = std::max(1, std::min(static_cast<int>(taken.size()), options.num_threads > 0 ? options.num_threads : hardware_threads()));
+  std::vector<int> by_size(taken.size());
+  for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
+  std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
+  std::vector<std::vector<int>> per_thread(stitch_threads);
+  std::vector<size_t> load(stitch_threads, 0);
+  for (int i : by_size) {
+    const int least = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
+    per_thread[least].push_back(i);
+    load[least] += taken[i].seam.vertices.size();
+  }
+  parallel_for(0, stitch_threads, [&](int thread) {
+    for (int i : per_thread[thread]) {
+      const auto [a, b] = result.pairs[i];
+      stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
+                  cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
+                  KeptAt{scratch.cameras[a].taken_round.data(), round_of_pair[i]}, KeptAt{scratch.cameras[b].taken_round.data(), round_of_pair[i]},
+                  taken[i]);
+    }
+  }, stitch_threads);
+  std::vector<Seam> seams(taken.size());
+  for (size_t i = 0; i < taken.size(); ++i) {
+    const auto [a, b] = result.pairs[i];
+    for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
+    for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
+    seams[i] = std::move(taken[i].seam);
+    result.stats.seam_taken += seams[i].triangles_taken;
+  }
   result.stats.clipping_ms = ms_since(t);
 
   // Assembly: kept triangles and seam triangles over shared pixel vertices, each camera's part
