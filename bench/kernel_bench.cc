@@ -4,7 +4,10 @@
 
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+
 #include "samba_frame.h"
+#include "zipfusion/core/parallel.h"
 #include "zipfusion/depth/bilateral.h"
 #include "zipfusion/depth/color_lookup.h"
 #include "zipfusion/depth/foreground.h"
@@ -109,6 +112,24 @@ BENCHMARK(BM_ZipperFourCameras)
     ->Args({2, 0, 1})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
+
+// The cost of one parallel_for call as zippering makes them: two blocks of 50 µs each on two
+// threads, then 100 µs of the caller's own sequential work before the next call. Without any
+// overhead an iteration takes 150 µs; a worker that sleeps between calls and must be woken adds
+// its wake-up time (docs/profile.md).
+void busy_wait(std::chrono::microseconds duration) {
+  const auto end = std::chrono::steady_clock::now() + duration;
+  while (std::chrono::steady_clock::now() < end) {
+  }
+}
+
+void BM_ParallelForTwoBlocks(benchmark::State& state) {
+  for (auto _ : state) {
+    parallel_for(0, 2, [](int) { busy_wait(std::chrono::microseconds(50)); }, 2);
+    busy_wait(std::chrono::microseconds(100));
+  }
+}
+BENCHMARK(BM_ParallelForTwoBlocks)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace zipfusion
