@@ -142,8 +142,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
     compute_overlap_mask(views[b][levels], views[a][levels], 2 * d_r, scratch.masks[i].second);
   }, options.num_threads);
-  auto masks_of = [&](const std::pair<int, int>& pair) -> const auto& {
-    return scratch.masks[std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin()];
+  auto pair_index_of = [&](const std::pair<int, int>& pair) {
+    return static_cast<size_t>(std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin());
   };
   const auto rounds = schedule_pairs(result.pairs);
   // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
@@ -172,7 +172,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (const auto& round : rounds) {
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const auto [a, b] = round[i];
-        const auto& masks = masks_of(round[i]);
+        const auto& masks = scratch.masks[pair_index_of(round[i])];
         remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, masks.first, masks.second,
                                     scratch.cameras[a].frbr, scratch.cameras[b].frbr);
       }, options.num_threads);
@@ -201,9 +201,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // later rounds took more counts those later-taken triangles as kept, as they were for it.
   std::vector<TakenSeam> taken(result.pairs.size());
   std::vector<int> round_of_pair(result.pairs.size(), 0);
-  auto pair_index_of = [&](const std::pair<int, int>& pair) {
-    return static_cast<size_t>(std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin());
-  };
   for (int c : active) scratch.cameras[c].taken_round.resize(cameras[c].mesh->triangles.size() * 2, 0);
   for (size_t r = 0; r < rounds.size(); ++r) {
     const auto& round = rounds[r];
