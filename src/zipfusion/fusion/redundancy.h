@@ -81,17 +81,10 @@ inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uin
   return area;
 }
 
-//! Element function: the score at full-resolution pixel coordinates (x, y), bilinear between cell
-//! centres; 0 outside the image.
-inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel);
-
-//! The same, at full-resolution pixel coordinates.
-inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
-  return ownership_score_at(q, x, y, 1.0f / static_cast<float>(1 << q.level));
-}
-
-//! The same, at coordinates in pixels of another level: `cells_per_pixel` = 2^(level − q.level)
-//! (a power of two, so the result is exactly that of the full-resolution coordinates).
+//! Element function: the score at (x, y) in pixels of a level whose pixels are 1/cells_per_pixel
+//! cells of the score's level (cells_per_pixel = 2^(level − q.level), a power of two, so the
+//! result is exactly that of the full-resolution coordinates), bilinear between cell centres; 0
+//! outside the image.
 inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel) {
   const float cx = x * cells_per_pixel - 0.5f, cy = y * cells_per_pixel - 0.5f;
   if (!(cx > -1.0f && cy > -1.0f && cx < q.width_f && cy < q.height_f)) return 0.0f;
@@ -103,6 +96,11 @@ inline float ownership_score_at(const OwnershipScore& q, float x, float y, float
   const float top = row0[0] + fu * (row0[1] - row0[0]);
   const float bottom = row1[0] + fu * (row1[1] - row1[0]);
   return top + fv * (bottom - top);
+}
+
+//! The same at full-resolution pixel coordinates.
+inline float ownership_score_at(const OwnershipScore& q, float x, float y) {
+  return ownership_score_at(q, x, y, 1.0f / static_cast<float>(1 << q.level));
 }
 
 //! One camera's mesh at one pyramid level and how to project into it.
