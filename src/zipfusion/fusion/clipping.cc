@@ -47,30 +47,43 @@ void select_seeds(const MeshView& view, const OverlapMask& mask, SeamScratch& s)
 // redundancy removal the two meshes meet, so the triangles within d_c of the other mesh are this
 // one ring: growing it through every triangle within d_c (a flood fill) took 1.7 times the
 // triangles on samba-4cam and changed no quality figure (docs/design.md). `b_seeds`: b's
-// boundary triangles inside its mask (select_seeds); a's are in `s.seeds`.
-void find_seam_triangles(const MeshView& a, const MeshView& b, const std::vector<int>& b_seeds, float distance, SeamScratch& s) {
+// boundary triangles inside its mask (select_seeds); a's are in `s.seeds`. `s.seeds_in_other`,
+// `b.seeds_in_other`: the seeds' centres projected into the other camera (project_seeds).
+void find_seam_triangles(const MeshView& a, const MeshView& b, const SeamScratch& b_scratch, float distance, SeamScratch& s) {
   const DepthMesh& mesh = *a.mesh;
-  const Rigid3f b_from_a_camera = b_from_a(a, b), a_from_b_camera = b_from_a(b, a);
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
   s.marks.reserve(mesh.triangles.size() * 2);
   s.taken.clear();
   s.visited.clear();
-  auto visit = [&](int id) {
-    if (s.marks.test_and_set(id)) return;
-    s.visited.push_back(id);
-    const int cell = cell_of(id);
-    if (!(mesh.triangles[cell] & bit_of(id))) return;
-    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, bit_of(id)));
+  auto test = [&](int id, const ViewPoint& centre) {
     if (!may_see_point(b, centre, 2 * distance) || !has_triangle_near(b, centre, distance, kSeamWindow)) return;
     s.taken.push_back(id);
   };
-  for (int id : s.seeds) visit(id);
-  for (int id : b_seeds) {
-    const int under = project_camera_point(a, a_from_b_camera * camera_triangle_centre(b, cell_of(id), bit_of(id))).cell;
+  auto first_visit = [&](int id) {
+    if (s.marks.test_and_set(id)) return false;
+    s.visited.push_back(id);
+    return (mesh.triangles[cell_of(id)] & bit_of(id)) != 0;
+  };
+  for (size_t k = 0; k < s.seeds.size(); ++k) {
+    if (first_visit(s.seeds[k])) test(s.seeds[k], s.seeds_in_other[k]);
+  }
+  for (const ViewPoint& b_centre : b_scratch.seeds_in_other) {
+    const int under = b_centre.cell;
     if (under < 0 || !mesh.triangles[under]) continue;
-    visit(triangle_id(under, kUpperTriangle));
-    visit(triangle_id(under, kLowerTriangle));
+    for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+      const int id = triangle_id(under, bit);
+      if (first_visit(id)) test(id, project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, under, bit)));
+    }
   }
   for (int id : s.visited) s.marks.clear(id);
+}
+
+// The centres of `view`'s seeds projected into `other`: each is needed twice, to test the seed
+// and to find the other mesh's triangles under it.
+void project_seeds(const MeshView& view, const MeshView& other, SeamScratch& s) {
+  const Rigid3f other_from_view = b_from_a(view, other);
+  s.seeds_in_other.clear();
+  for (int id : s.seeds) s.seeds_in_other.push_back(project_camera_point(other, other_from_view * camera_triangle_centre(view, cell_of(id), bit_of(id))));
 }
 
 // Does any triangle of `mesh` use pixel p as a vertex?
@@ -216,8 +229,10 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
   // Both seams are found against the meshes as FRBR left them, then taken out together.
   select_seeds(a, mask_a, scratch_a);
   select_seeds(b, mask_b, scratch_b);
-  find_seam_triangles(a, b, scratch_b.seeds, options.clipping_distance, scratch_a);
-  find_seam_triangles(b, a, scratch_a.seeds, options.clipping_distance, scratch_b);
+  project_seeds(a, b, scratch_a);
+  project_seeds(b, a, scratch_b);
+  find_seam_triangles(a, b, scratch_b, options.clipping_distance, scratch_a);
+  find_seam_triangles(b, a, scratch_a, options.clipping_distance, scratch_b);
   // Both meshes lose their seam triangles before either's points are chosen, so "kept" means
   // kept after clipping.
   for (int id : scratch_a.taken) a.mesh->triangles[cell_of(id)] &= static_cast<std::uint8_t>(~bit_of(id));

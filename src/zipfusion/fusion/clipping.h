@@ -53,6 +53,7 @@ struct SeamScratch {
   // grown by each clipping.
   std::vector<int> boundary;
   std::vector<int> seeds;  // the current pair's: boundary triangles inside its overlap mask
+  std::vector<ViewPoint> seeds_in_other;  // their centres projected into the pair's other camera
 };
 
 //! Which triangles of a mesh count as kept when a seam is triangulated after later seams have
