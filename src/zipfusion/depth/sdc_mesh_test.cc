@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -57,6 +58,24 @@ TEST(Sdc, RowKernelMatchesTheElementFunction) {
     std::vector<std::uint8_t> bits(depth.width - 1);
     sdc_row(depth.data.data() + v * depth.width, depth.width, depth.width - 1, 0.03f, bits.data());
     for (int u = 0; u + 1 < depth.width; ++u) EXPECT_EQ(bits[u], sdc_cell(u, v, depth.data.data(), depth.width, depth.height, 0.03f)) << u << "," << v;
+  }
+}
+
+TEST(Sdc, NonzeroBytesAreVisitedOnceEachInOrder) {
+  // Sparse, dense and empty words, and lengths that do not end on a word.
+  std::mt19937 random(7);
+  for (int count : {0, 1, 7, 8, 9, 64, 203}) {
+    for (double density : {0.0, 0.05, 0.5, 1.0}) {
+      std::vector<std::uint8_t> bytes(count);
+      std::bernoulli_distribution set(density);
+      for (auto& b : bytes) b = set(random) ? static_cast<std::uint8_t>(1 + random() % 255) : 0;
+      std::vector<std::pair<int, int>> expected, visited;
+      for (int i = 0; i < count; ++i) {
+        if (bytes[i]) expected.emplace_back(i, bytes[i]);
+      }
+      for_each_nonzero_byte(bytes.data(), count, [&](int i, std::uint8_t b) { visited.emplace_back(i, b); });
+      EXPECT_EQ(visited, expected) << count << " bytes, density " << density;
+    }
   }
 }
 
