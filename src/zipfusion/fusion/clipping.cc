@@ -213,7 +213,8 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float sam
 bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance, const KeptAt& kept) {
   if (p.cell < 0) return false;
   const DepthMesh& mesh = *view.mesh;
-  const float fu = p.x - std::floor(p.x), fv = p.y - std::floor(p.y);
+  // p lies in the image (its cell is valid), so the floor is a truncation.
+  const float fu = p.x - static_cast<float>(static_cast<int>(p.x)), fv = p.y - static_cast<float>(static_cast<int>(p.y));
   const TriangleBit bit = fu + fv < 1.0f ? kUpperTriangle : kLowerTriangle;
   if (!(mesh.triangles[p.cell] & bit) && !kept.taken_later(triangle_id(p.cell, bit))) return false;
   int pixels[3];
