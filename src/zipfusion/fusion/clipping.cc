@@ -375,12 +375,4 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   }
 }
 
-Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                     const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
-                     SeamScratch& scratch_b) {
-  TakenSeam taken = take_seam(a, b, options, mask_a, mask_b, scratch_a, scratch_b);
-  stitch_seam(a, centre_a, b, centre_b, options, {}, {}, taken);
-  return std::move(taken.seam);
-}
-
 }  // namespace zipfusion

@@ -90,10 +90,4 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
 void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
                  const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, TakenSeam& taken);
 
-//! Both phases at once: the seam's triangles between `a` and `b`, with the triangles it replaces
-//! taken out of both meshes.
-Seam clip_and_stitch(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                     const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b, SeamScratch& scratch_a,
-                     SeamScratch& scratch_b);
-
 }  // namespace zipfusion
