@@ -116,23 +116,29 @@ inline bool is_boundary_triangle(const std::uint8_t* triangles, int index, int w
   return !(triangles[index] & kUpperTriangle) || !(triangles[index + width] & kUpperTriangle) || !(triangles[index + 1] & kUpperTriangle);
 }
 
+//! Calls f(k) for every nonzero byte k (0..7, in memory order) of `word`, found by its lowest set
+//! bit rather than tested one by one (whose branches mispredicted where a boundary row has one or
+//! two flags in a word).
+template <typename F>
+void for_each_nonzero_byte_in_word(std::uint64_t word, F&& f) {
+  static_assert(std::endian::native == std::endian::little, "byte k of a word is bits 8k..8k+7");
+  while (word != 0) {
+    const int k = std::countr_zero(word) >> 3;
+    f(k);
+    word &= ~(std::uint64_t{0xff} << (8 * k));
+  }
+}
+
 //! Calls f(i, bytes[i]) for every nonzero byte of bytes[0..count), in order, eight bytes at a
 //! time: most cells of a depth camera's image hold no triangle (the subject fills a fraction of
-//! it), and most of a mesh's cells are not on its boundary. Within a word the nonzero bytes are
-//! found by their lowest set bit, not tested one by one (whose branches mispredicted where a
-//! boundary row has one or two flags in a word).
+//! it), and most of a mesh's cells are not on its boundary.
 template <typename F>
 void for_each_nonzero_byte(const std::uint8_t* bytes, int count, F&& f) {
-  static_assert(std::endian::native == std::endian::little, "byte k of a word is bits 8k..8k+7");
   int i = 0;
   for (; i + 8 <= count; i += 8) {
     std::uint64_t word;
     std::memcpy(&word, bytes + i, sizeof word);
-    while (word != 0) {
-      const int k = std::countr_zero(word) >> 3;
-      f(i + k, bytes[i + k]);
-      word &= ~(std::uint64_t{0xff} << (8 * k));
-    }
+    for_each_nonzero_byte_in_word(word, [&](int k) { f(i + k, bytes[i + k]); });
   }
   for (; i < count; ++i) {
     if (bytes[i]) f(i, bytes[i]);

@@ -423,21 +423,17 @@ int propagate_removals(const std::vector<std::uint8_t>& coarse_before, const Dep
       clear(fu + 1, fv + 1, kUpperTriangle | kLowerTriangle);
     }
   };
-  // Few cells lost a triangle: eight cells at a time are skipped where none did.
+  // Few cells lost a triangle: eight cells at a time, those that did found from the word of
+  // removed bits (propagation changes only the fine mesh, so the words can be formed first).
   const int cells = coarse.width * coarse.height;
   int i = 0;
-  while (i < cells) {
-    if (i + 8 <= cells) {
-      std::uint64_t before, now;
-      std::memcpy(&before, coarse_before.data() + i, sizeof before);
-      std::memcpy(&now, coarse.triangles.data() + i, sizeof now);
-      if ((before & ~now) == 0) {
-        i += 8;
-        continue;
-      }
-    }
-    for (const int end = std::min(i + 8, cells); i < end; ++i) propagate_cell(i);
+  for (; i + 8 <= cells; i += 8) {
+    std::uint64_t before, now;
+    std::memcpy(&before, coarse_before.data() + i, sizeof before);
+    std::memcpy(&now, coarse.triangles.data() + i, sizeof now);
+    for_each_nonzero_byte_in_word(before & ~now, [&](int k) { propagate_cell(i + k); });
   }
+  for (; i < cells; ++i) propagate_cell(i);
   return cleared;
 }
 
