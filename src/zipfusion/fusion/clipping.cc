@@ -87,13 +87,14 @@ void project_seeds(const MeshView& view, const MeshView& other, SeamScratch& s) 
 }
 
 // Does any triangle of `mesh` use pixel p as a vertex?
+// The triangle bits of cell (cu, cv) of `mesh`, 0 for a cell outside it.
+std::uint8_t cell_bits(const DepthMesh& mesh, int cu, int cv) {
+  return cu >= 0 && cv >= 0 && cu < mesh.width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * mesh.width + cu] : 0;
+}
+
 bool pixel_has_triangle(const DepthMesh& mesh, int p) {
   const int u = p % mesh.width, v = p / mesh.width;
-  const auto bits = [&](int du, int dv) -> std::uint8_t {
-    const int cu = u + du, cv = v + dv;
-    return cu >= 0 && cv >= 0 && cu < mesh.width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * mesh.width + cu] : 0;
-  };
-  return pixel_used(bits(0, 0), bits(-1, 0), bits(0, -1), bits(-1, -1));
+  return pixel_used(cell_bits(mesh, u, v), cell_bits(mesh, u - 1, v), cell_bits(mesh, u, v - 1), cell_bits(mesh, u - 1, v - 1));
 }
 
 // Adds the pixels of the taken triangles (already cleared from the mesh) to the seam's vertex
@@ -141,15 +142,13 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
     const int index = s.seam_index[pixel];
     return index >= first_vertex && index < end_vertex && seam.vertices[index].pixel == pixel ? index : -1;
   };
-  auto bits = [&](int cu, int cv) -> unsigned {
-    return cu >= 0 && cv >= 0 && cu < width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * width + cu] : 0u;
-  };
   for (int index = first_vertex; index < end_vertex; ++index) {
     const int p = seam.vertices[index].pixel;
     const int u = p % width, v = p / width;
     // The six grid edges from p and the triangles on either side of each (upper triangle of
     // cell (u, v): (u, v), (u, v + 1), (u + 1, v); lower: (u + 1, v), (u, v + 1), (u + 1, v + 1)).
-    const unsigned here = bits(u, v), left = bits(u - 1, v), up = bits(u, v - 1), up_left = bits(u - 1, v - 1);
+    const unsigned here = cell_bits(mesh, u, v), left = cell_bits(mesh, u - 1, v), up = cell_bits(mesh, u, v - 1),
+                   up_left = cell_bits(mesh, u - 1, v - 1);
     const struct {
       bool kept;
       int other;
