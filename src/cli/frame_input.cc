@@ -48,7 +48,7 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     }
   }
   install_stop_on_signal();
-  in.live = std::make_unique<LiveRig>(open_live_cameras(args.devices), LiveRigOptions{.cancel = &stop_requested()});
+  in.live = std::make_unique<LiveRig>(open_live_cameras(args.devices), live_rig_options(args.devices, &stop_requested()));
   if (rig_path.empty()) {
     in.rig = make_live_rig(*in.live);
     std::cout << "no --rig: world poses are identity; calibrate the rig (README.md) and pass --rig\n" << std::flush;

@@ -3,6 +3,7 @@
 // and Ctrl-C as a clean stop.
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <memory>
@@ -12,6 +13,7 @@
 #include "zipfusion/core/error.h"
 #include "zipfusion/live/kinect_camera.h"
 #include "zipfusion/live/live_camera.h"
+#include "zipfusion/live/live_rig.h"
 #include "zipfusion/live/replay_camera.h"
 
 namespace zipfusion::cli {
@@ -21,7 +23,17 @@ struct LiveDeviceArgs {
   std::string replay;                // --replay DUMP[,DUMP...]
   std::string depth_format = "auto";
   KinectOptions kinect;
+  double max_wait_s = -1;            // --max-wait; below 0: 0.25 s for devices, the stall timeout for replays
 };
+
+//! The LiveRig's options for the selected cameras. A device delivers in real time, so a camera
+//! 0.25 s late is dropped from its frame set and the set goes on; a replayed dump delivers as fast
+//! as it is read, so a late frame only means a busy machine (CI runs tests side by side), and the
+//! rig waits up to the stall timeout before it decides a set without it.
+inline LiveRigOptions live_rig_options(const LiveDeviceArgs& args, const std::atomic<bool>* cancel) {
+  const double wait = args.max_wait_s >= 0 ? args.max_wait_s : args.replay.empty() ? 0.25 : args.kinect.stall_timeout_s;
+  return LiveRigOptions{.max_wait_s = std::min(wait, 60.0), .cancel = cancel};
+}
 
 inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
   cmd->add_option("--devices", args.devices,
@@ -36,6 +48,10 @@ inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
       ->capture_default_str();
   cmd->add_option("--stall-timeout", args.kinect.stall_timeout_s, "A Kinect without a depth frame this long has been unplugged, seconds")
       ->capture_default_str();
+  cmd->add_option("--max-wait", args.max_wait_s,
+                  "A camera's frame this late is left out of its frame set, seconds (default: 0.25 for --devices, the stall timeout "
+                  "for --replay, whose frames come as fast as they are read)")
+      ->check(CLI::Range(0.0, 60.0));
 }
 
 inline std::vector<std::string> split_commas(const std::string& text) {

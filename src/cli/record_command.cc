@@ -57,7 +57,7 @@ void run_record(RecordArgs& args) {
   args.options.color_extension = "." + args.color_format;
   args.options.validate();
   install_stop_on_signal();
-  LiveRig live(open_live_cameras(args.devices), LiveRigOptions{.cancel = &stop_requested()});
+  LiveRig live(open_live_cameras(args.devices), live_rig_options(args.devices, &stop_requested()));
   Rig rig;
   if (args.rig.empty()) {
     rig = make_live_rig(live);
