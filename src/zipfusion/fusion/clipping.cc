@@ -177,6 +177,43 @@ void clear_pixel_marks(const MeshView& view, SeamScratch& s) {
   }
 }
 
+// Makes the kept edge (from, to) an edge of the triangulation by one flip, where it crosses exactly
+// one edge, the diagonal of the quadrilateral of the two triangles that have `from` and `to` as
+// their far corners (mostly the pixel grid's other diagonal); false where it does not, or where
+// that diagonal is constrained or a corner lies on the kept edge. CGAL's constraint insertion
+// would give the same triangulation (each side of the kept edge is one triangle, constrained
+// Delaunay as it is) after walking the segment and re-triangulating the hole with lists it
+// allocates: 7 000 instructions a constraint, about a tenth of clipping without the filter.
+bool flip_into_edge(Delaunay& triangulation, Delaunay::Vertex_handle from, Delaunay::Vertex_handle to) {
+  Delaunay::Face_circulator face = triangulation.incident_faces(from), first = face;
+  if (face == nullptr) return false;
+  do {
+    if (triangulation.is_infinite(face)) continue;
+    const int i = face->index(from);
+    const Delaunay::Face_handle across = face->neighbor(i);
+    if (triangulation.is_infinite(across) || across->vertex(triangulation.mirror_index(face, i)) != to) continue;
+    if (face->is_constrained(i)) return false;
+    const Kernel::Point_2 &a = face->vertex(Delaunay::cw(i))->point(), &b = face->vertex(Delaunay::ccw(i))->point();
+    const CGAL::Orientation side_a = triangulation.orientation(from->point(), to->point(), a);
+    const CGAL::Orientation side_b = triangulation.orientation(from->point(), to->point(), b);
+    if (side_a == CGAL::COLLINEAR || side_b == CGAL::COLLINEAR || side_a == side_b) return false;
+    Delaunay::Face_handle flipped = face;
+    triangulation.flip(flipped, i);
+    return true;
+  } while (++face != first);
+  return false;
+}
+
+// Marks the triangulation edge (from, to) as constrained on both its sides; false when it is not an edge.
+bool mark_constrained(Delaunay& triangulation, Delaunay::Vertex_handle from, Delaunay::Vertex_handle to) {
+  Delaunay::Face_handle face;
+  int edge;
+  if (triangulation.dimension() != 2 || !triangulation.is_edge(from, to, face, edge)) return false;
+  face->set_constraint(edge, true);
+  face->neighbor(edge)->set_constraint(triangulation.mirror_index(face, edge), true);
+  return true;
+}
+
 // Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a 5×5
 // window) on the same surface (within `same_surface`, the SDC threshold), in the camera frame.
 Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float same_surface) {
@@ -343,16 +380,13 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // edges of the triangulation: those are marked as constrained in place (which keeps it
   // constrained Delaunay), without CGAL's general insertion, which first looks for vertices on
   // the segment and allocates a work stack per call (clipping 9 % fewer instructions).
+  // Of the others, most cross one edge and take one flip (flip_into_edge).
   for (const auto& [i, j] : constraints) {
-    if (handle[i] == handle[j]) continue;
-    Delaunay::Face_handle face;
-    int edge;
-    if (triangulation.dimension() == 2 && triangulation.is_edge(handle[i], handle[j], face, edge)) {
-      face->set_constraint(edge, true);
-      face->neighbor(edge)->set_constraint(triangulation.mirror_index(face, edge), true);
-    } else {
-      triangulation.insert_constraint(handle[i], handle[j]);
+    if (handle[i] == handle[j] || mark_constrained(triangulation, handle[i], handle[j])) continue;
+    if (triangulation.dimension() == 2 && flip_into_edge(triangulation, handle[i], handle[j]) && mark_constrained(triangulation, handle[i], handle[j])) {
+      continue;
     }
+    triangulation.insert_constraint(handle[i], handle[j]);
   }
   const float max_edge2 = options.max_edge * options.max_edge;
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
