@@ -35,7 +35,7 @@ struct ZipperOptions {
   int smoothness_window_px = 26;        // smoothness: compared over windows this wide (pixels)
   double smoothness_exponent = 12;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
-  double min_overlap_share = 0.002;     // a pair overlaps when this share of one mesh lies within d_r of the other
+  double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)
   int num_threads = 0;                  // 0 = all hardware threads
