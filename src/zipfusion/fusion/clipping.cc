@@ -183,7 +183,7 @@ void clear_pixel_marks(const MeshView& view, SeamScratch& s) {
 // that diagonal is constrained or a corner lies on the kept edge. CGAL's constraint insertion
 // would give the same triangulation (each side of the kept edge is one triangle, constrained
 // Delaunay as it is) after walking the segment and re-triangulating the hole with lists it
-// allocates: 7 000 instructions a constraint, about a tenth of clipping without the filter.
+// allocates, about 3 000 instructions more a constraint (stitching 5 % fewer without the filter).
 bool flip_into_edge(Delaunay& triangulation, Delaunay::Vertex_handle from, Delaunay::Vertex_handle to) {
   Delaunay::Face_circulator face = triangulation.incident_faces(from), first = face;
   if (face == nullptr) return false;
