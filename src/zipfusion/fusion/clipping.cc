@@ -86,12 +86,12 @@ void project_seeds(const MeshView& view, const MeshView& other, SeamScratch& s) 
   for (int id : s.seeds) s.seeds_in_other.push_back(project_camera_point(other, other_from_view * camera_triangle_centre(view, cell_of(id), bit_of(id))));
 }
 
-// Does any triangle of `mesh` use pixel p as a vertex?
 // The triangle bits of cell (cu, cv) of `mesh`, 0 for a cell outside it.
 std::uint8_t cell_bits(const DepthMesh& mesh, int cu, int cv) {
   return cu >= 0 && cv >= 0 && cu < mesh.width - 1 && cv < mesh.height - 1 ? mesh.triangles[cv * mesh.width + cu] : 0;
 }
 
+// Does any triangle of `mesh` use pixel p as a vertex?
 bool pixel_has_triangle(const DepthMesh& mesh, int p) {
   const int u = p % mesh.width, v = p / mesh.width;
   return pixel_used(cell_bits(mesh, u, v), cell_bits(mesh, u - 1, v), cell_bits(mesh, u, v - 1), cell_bits(mesh, u - 1, v - 1));
