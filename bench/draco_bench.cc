@@ -1,14 +1,15 @@
 // The stream's compression on a real capture: each frame set reconstructed at level of detail 0
 // and 1 (default options, true poses), compressed with Draco as `zipfusion serve` does (11-bit
-// positions over the capture volume, compression level 7): size, encoding time, and the largest
+// positions over the capture volume, compression level 4): size, encoding time, and the largest
 // distance of a decoded vertex from the reconstructed surface against the quantisation bound.
-// Usage: zf_draco_bench CAPTURE [--frames N] [--json]
+// Usage: zf_draco_bench CAPTURE [--frames N] [--compression-level L] [--json]
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "zipfusion/core/mesh_distance.h"
@@ -19,20 +20,29 @@
 int main(int argc, char** argv) {
   using namespace zipfusion;
   if (argc < 2) {
-    std::fprintf(stderr, "usage: zf_draco_bench CAPTURE [--frames N] [--json]\n");
+    std::fprintf(stderr, "usage: zf_draco_bench CAPTURE [--frames N] [--compression-level L] [--json]\n");
     return 2;
   }
   int frames = 40;
   bool json = false;
+  DracoOptions draco;
   for (int i = 2; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--frames") && i + 1 < argc) frames = std::atoi(argv[++i]);
+    if (!std::strcmp(argv[i], "--compression-level") && i + 1 < argc) draco.compression_level = std::atoi(argv[++i]);
     if (!std::strcmp(argv[i], "--json")) json = true;
   }
-  const Capture capture = Capture::open(argv[1]);
+  std::optional<Capture> opened;
+  try {
+    draco.validate();
+    opened.emplace(Capture::open(argv[1]));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "zf_draco_bench: %s\n", e.what());
+    return 2;
+  }
+  const Capture& capture = *opened;
   Rig rig = capture.ground_truth_rig().value_or(capture.rig());
   rig.volume = capture.rig().volume;
   frames = std::min(frames, capture.frame_count());
-  const DracoOptions draco;
   nlohmann::ordered_json result;
   float bound = 0;
   for (const int lod : {0, 1}) {

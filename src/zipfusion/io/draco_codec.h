@@ -19,7 +19,9 @@ namespace zipfusion {
 
 struct DracoOptions {
   int position_bits = 11;     // bits per coordinate over the quantisation box (issue 8: 11)
-  int compression_level = 7;  // 0 (fastest) to 10 (smallest); Draco's encoder speed is 10 − this
+  // 0 (fastest) to 10 (smallest); Draco's encoder speed is 10 − this. 4, not Draco's default 7:
+  // on a live stream encoding time is latency and server time (docs/design.md, "Compression").
+  int compression_level = 4;
   bool colors = true;         // encode per-vertex colours when the mesh has them
 
   void validate() const;  // throws InvalidInput naming the field
