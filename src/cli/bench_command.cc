@@ -95,14 +95,15 @@ std::string cpu_model() {
 
 ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::vector<FrameSet>& frames, int repeat) {
   FrameReconstructor reconstructor(rig, config.options);
-  reconstructor.reconstruct(frames.front());  // buffers sized: steady state
+  reconstructor.recycle(reconstructor.reconstruct(frames.front()).mesh);  // buffers sized: steady state
   std::map<std::string, std::vector<double>> samples;
   std::vector<double> triangles;
   for (int pass = 0; pass < repeat; ++pass) {
     for (const FrameSet& set : frames) {
-      const FrameResult result = reconstructor.reconstruct(set);
+      FrameResult result = reconstructor.reconstruct(set);
       for (const auto& [name, field] : kStages) samples[name].push_back(result.times.*field);
       triangles.push_back(static_cast<double>(result.mesh.triangle_count()));
+      reconstructor.recycle(std::move(result.mesh));  // as the pipeline does after its sink
     }
   }
   ConfigResult out{.name = config.name};
@@ -170,7 +171,8 @@ void run_bench(const BenchArgs& args) {
     const int early = std::min(100, args.soak);
     double at_early = 0;
     for (int i = 0; i < args.soak; ++i) {
-      const FrameResult result = reconstructor.reconstruct(frames[i % frames.size()]);
+      FrameResult result = reconstructor.reconstruct(frames[i % frames.size()]);
+      reconstructor.recycle(std::move(result.mesh));
       if (i + 1 == early) at_early = resident_mb();
       if ((i + 1) % 50 == 0) show_progress("soak", i + 1, args.soak);
     }

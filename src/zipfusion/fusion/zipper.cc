@@ -80,8 +80,10 @@ std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<s
   return rounds;
 }
 
-ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch) {
+ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch,
+                           TriangleMesh reuse) {
   ZipperResult result;
+  result.mesh = std::move(reuse);
   const int camera_count = static_cast<int>(cameras.size());
   const int levels = options.coarse_levels;
   scratch.cameras.resize(camera_count);
@@ -282,10 +284,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   }
   size_t seam_triangles = 0;
   for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
+  // Room for the seam triangles first: reserving after the resize moved every kept triangle.
+  mesh.triangles.clear();
+  mesh.triangles.reserve(triangle_offset[camera_count] + seam_triangles);
+  mesh.triangles.resize(triangle_offset[camera_count]);
   mesh.positions.resize(vertex_offset[camera_count]);
   mesh.colors.resize(vertex_offset[camera_count]);
-  mesh.triangles.resize(triangle_offset[camera_count]);
-  mesh.triangles.reserve(mesh.triangles.size() + seam_triangles);
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
     ZipperScratch::Camera& s = scratch.cameras[c];

@@ -90,7 +90,9 @@ struct ZipperScratch {
   std::vector<std::vector<int>> outgoing;    // assembly: per seam vertex, far ends of its directed edges
 };
 
-ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch);
+//! `reuse`: a mesh whose buffers the result's mesh is built in (its contents are dropped).
+ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch,
+                           TriangleMesh reuse = {});
 
 //! Pairs grouped into rounds in which no camera appears twice (greedy edge colouring).
 std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<std::pair<int, int>>& pairs);

@@ -85,7 +85,10 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
   } close_queues{decoded, reconstructed};
   std::jthread sink_thread([&] {
     try {
-      while (std::optional<PipelineFrame> frame = reconstructed.pop()) sink(*frame);
+      while (std::optional<PipelineFrame> frame = reconstructed.pop()) {
+        sink(*frame);
+        reconstructor.recycle(std::move(frame->result.mesh));
+      }
     } catch (...) {
       error.set(std::current_exception());
       decoded.close();  // unblocks the source; the reconstruction loop sees the closed queue

@@ -112,7 +112,9 @@ struct PipelineStats {
   double wall_ms = 0;      // first decode to last sink call
 };
 
-//! Runs source → reconstructor → sink until the source ends. An exception in any stage stops the
+//! Runs source → reconstructor → sink until the source ends. After the sink returns, the frame's
+//! mesh goes back to the reconstructor for reuse (FrameReconstructor::recycle): a sink that keeps
+//! it moves it out. An exception in any stage stops the
 //! pipeline and is rethrown here (the first one).
 PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& reconstructor, const std::function<void(PipelineFrame&)>& sink,
                            const PipelineOptions& options = {});

@@ -62,9 +62,31 @@ void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth)
   for (size_t c = 0; c < rig_.cameras.size(); ++c) rig_.cameras[c].world_from_depth = world_from_depth[c];
 }
 
+namespace {
+// Meshes kept for reuse: one per frame set the pipeline can hold at once (its queue of 2 and the
+// sink's).
+constexpr size_t kSpareMeshes = 3;
+}  // namespace
+
+void FrameReconstructor::recycle(TriangleMesh&& mesh) {
+  if (mesh.triangles.capacity() == 0) return;  // nothing worth keeping (moved from)
+  std::lock_guard lock(spare_mutex_);
+  if (spare_meshes_.size() < kSpareMeshes) spare_meshes_.push_back(std::move(mesh));
+}
+
 FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   const Clock::time_point start = Clock::now();
   FrameResult result;
+  {
+    std::lock_guard lock(spare_mutex_);
+    if (!spare_meshes_.empty()) {
+      result.mesh = std::move(spare_meshes_.back());
+      spare_meshes_.pop_back();
+    }
+  }
+  result.mesh.positions.clear();
+  result.mesh.colors.clear();
+  result.mesh.triangles.clear();
   const int camera_count = static_cast<int>(rig_.cameras.size());
   std::vector<bool> active(camera_count, false);
   for (int c = 0; c < camera_count; ++c) active[c] = c < static_cast<int>(frames.cameras.size()) && frames.cameras[c].has_depth;
@@ -117,7 +139,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     zipper.ownership = options_.ownership();
     zipper.sdc_max_depth_jump_m = options_.sdc.max_depth_jump_m;
     zipper.num_threads = threads;
-    ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_);
+    ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_, std::move(result.mesh));
     result.mesh = std::move(zipped.mesh);
     result.zipper = zipped.stats;
     result.times.overlap_ms = zipped.stats.pyramid_ms + zipped.stats.overlap_ms;

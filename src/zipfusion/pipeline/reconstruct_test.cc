@@ -116,6 +116,26 @@ TEST(Reconstruct, CoarserLevelOfDetailKeepsTheSurface) {
   EXPECT_THROW(FrameReconstructor(rig, {.depth_level = 4}), InvalidInput);
 }
 
+// A recycled mesh's buffers hold the next frame set's mesh, and that mesh is exactly the one a
+// fresh reconstructor makes (nothing of the recycled one is left in it), in both modes.
+TEST(Reconstruct, RecycledMeshHoldsTheNextMeshExactly) {
+  const SyntheticFrame scene = synthetic_frame(4);
+  FrameSet three_cameras = scene.frames;
+  three_cameras.cameras[1].has_depth = false;  // a smaller mesh than the recycled one
+  for (const ReconstructMode mode : {ReconstructMode::kZipper, ReconstructMode::kSeparate}) {
+    FrameReconstructor reused(scene.rig, {.mode = mode}), fresh(scene.rig, {.mode = mode});
+    FrameResult first = reused.reconstruct(scene.frames);
+    const Eigen::Vector3i* buffer = first.mesh.triangles.data();
+    reused.recycle(std::move(first.mesh));
+    const FrameResult second = reused.reconstruct(three_cameras), expected = fresh.reconstruct(three_cameras);
+    EXPECT_EQ(second.mesh.triangles.data(), buffer) << "mode " << static_cast<int>(mode);
+    ASSERT_GT(expected.mesh.triangle_count(), 10000u);
+    EXPECT_EQ(second.mesh.triangles, expected.mesh.triangles) << "mode " << static_cast<int>(mode);
+    EXPECT_EQ(second.mesh.positions, expected.mesh.positions) << "mode " << static_cast<int>(mode);
+    EXPECT_EQ(second.mesh.colors, expected.mesh.colors) << "mode " << static_cast<int>(mode);
+  }
+}
+
 TEST(Reconstruct, MissingCameraIsLeftOut) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   FrameSet frames = capture.load_frame(0);
