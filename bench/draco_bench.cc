@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -28,7 +29,12 @@ int main(int argc, char** argv) {
   DracoOptions draco;
   for (int i = 2; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--frames") && i + 1 < argc) frames = std::atoi(argv[++i]);
-    if (!std::strcmp(argv[i], "--compression-level") && i + 1 < argc) draco.compression_level = std::atoi(argv[++i]);
+    if (!std::strcmp(argv[i], "--compression-level") && i + 1 < argc) {
+      char* end = nullptr;
+      const char* value = argv[++i];
+      draco.compression_level = static_cast<int>(std::strtol(value, &end, 10));
+      if (end == value || *end != '\0') draco.compression_level = -1;  // not a number: validate() names the option
+    }
     if (!std::strcmp(argv[i], "--json")) json = true;
   }
   std::optional<Capture> opened;
@@ -67,6 +73,7 @@ int main(int argc, char** argv) {
                                            {"max_error_mm", worst * 1000}};
   }
   result["bound_mm"] = bound * 1000;
+  result["compression_level"] = draco.compression_level;
   result["frames"] = frames;
   if (json) {
     std::printf("%s\n", result.dump().c_str());

@@ -138,7 +138,8 @@ def main(folder):
     clients, one, browser, draco = (load(folder, f"stream_{n}.json") for n in ("clients", "one_client", "browser", "draco"))
     if clients and draco:
         out += ["## The live stream (issue 8)", "",
-                "`zipfusion serve` on samba-4cam (true poses, level of detail 1, Draco 11-bit positions, compression level 4), "
+                "`zipfusion serve` on samba-4cam (true poses, level of detail 1, Draco 11-bit positions, "
+                f"compression level {draco.get('compression_level', 4)}), "
                 "looping at 30 fps; clients on the same machine (loopback).", "",
                 "| Draco, 4-camera frame set (mean over the frames) | level of detail 0 (full depth) | level of detail 1 (the stream's) |",
                 "|---|---|---|",

@@ -285,6 +285,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   size_t seam_triangles = 0;
   for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
   // Room for the seam triangles first: reserving after the resize moved every kept triangle.
+  mesh.positions.clear();
+  mesh.colors.clear();
   mesh.triangles.clear();
   mesh.triangles.reserve(triangle_offset[camera_count] + seam_triangles);
   mesh.triangles.resize(triangle_offset[camera_count]);

@@ -11,7 +11,8 @@
 //! pipeline shows the newest frames and never falls behind; the drops are counted in the stats.
 //!
 //! Thread safety: run_pipeline() owns its threads and joins them before it returns; the source is
-//! called from one thread, the sink from another.
+//! called from one thread, the sink from another, which also hands each mesh back to the
+//! reconstructor (FrameReconstructor::recycle) while it reconstructs the next.
 
 #include <condition_variable>
 #include <deque>

@@ -12,6 +12,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Meshes kept for reuse: as many as the pipeline holds while the next is built with its default
+// queue (PipelineOptions::queue_depth 2, plus the one in the sink); a deeper queue allocates the
+// difference.
+constexpr size_t kSpareMeshes = 3;
+
 double elapsed_ms(Clock::time_point since) { return std::chrono::duration<double, std::milli>(Clock::now() - since).count(); }
 
 const ReconstructOptions& validated(const ReconstructOptions& options) {
@@ -61,12 +66,6 @@ void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth)
   assert(world_from_depth.size() == rig_.cameras.size());
   for (size_t c = 0; c < rig_.cameras.size(); ++c) rig_.cameras[c].world_from_depth = world_from_depth[c];
 }
-
-namespace {
-// Meshes kept for reuse: one per frame set the pipeline can hold at once (its queue of 2 and the
-// sink's).
-constexpr size_t kSpareMeshes = 3;
-}  // namespace
 
 void FrameReconstructor::recycle(TriangleMesh&& mesh) {
   if (mesh.triangles.capacity() == 0) return;  // nothing worth keeping (moved from)

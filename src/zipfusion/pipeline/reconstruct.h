@@ -2,9 +2,11 @@
 //! \file
 //! One frame set in, one mesh out: foreground, bilateral filter, SDC triangulation and colour per
 //! camera (paper Section III-B), then assembly. `FrameReconstructor` keeps every per-camera
-//! buffer between frames, so steady-state frames allocate only the output mesh.
+//! buffer between frames, and the output meshes handed back to it (recycle()), so steady-state
+//! frames allocate no output mesh either.
 //!
-//! Thread safety: one FrameReconstructor per thread; reconstruct() is not reentrant.
+//! Thread safety: reconstruct() and set_poses() from one thread at a time (reconstruct() is not
+//! reentrant); recycle() from any thread. Neither copyable nor movable (it holds a mutex).
 
 #include <mutex>
 #include <string>
@@ -79,9 +81,10 @@ class FrameReconstructor {
   FrameResult reconstruct(const FrameSet& frames);
 
   //! Hands back a mesh that reconstruct() returned, once its user is done with it: a later frame
-  //! set's mesh is built in its buffers. A frame set's mesh is 4–7 MB, and fresh memory costs a
-  //! page fault every 4 kB as it is first written, so in steady state (the pipeline recycles every
-  //! mesh after its sink) no output mesh is allocated. Thread-safe, unlike reconstruct().
+  //! set's mesh is built in its buffers. A frame set's mesh is 4–7 MB at full resolution, and
+  //! fresh memory costs a page fault every 4 kB as it is first written, so in steady state (the
+  //! pipeline recycles every mesh after its sink) no output mesh is allocated. Thread-safe, unlike
+  //! reconstruct().
   void recycle(TriangleMesh&& mesh);
 
   //! Replaces the camera poses (refined by registration) from the next frame on. Precondition: one
