@@ -21,9 +21,11 @@ while (Date.now() < end) {
   await page.waitForTimeout(2000);
   const latency = parseFloat(await page.textContent('#latency'));
   const fps = parseFloat(await page.textContent('#fps'));
-  samples.push({ latency, fps });
+  const window = await page.evaluate(() => `${document.body.dataset.flowWindow}`);
+  samples.push({ latency, fps, window });
 }
 await browser.close();
 const median = (v) => [...v].sort((a, b) => a - b)[Math.floor(v.length / 2)];
-const result = { latency_ms_median: median(samples.map((s) => s.latency)), fps_median: median(samples.map((s) => s.fps)), samples: samples.length };
+const result = { latency_ms_median: median(samples.map((s) => s.latency)), fps_median: median(samples.map((s) => s.fps)), samples: samples.length,
+  windows: samples.map((s) => s.window) };
 console.log(JSON.stringify(result));

@@ -118,11 +118,40 @@ draco.setDecoderPath('draco/');
 draco.setWorkerLimit(2);
 
 // Flow control: every frame received is acknowledged once, when drawn or skipped, and the server
-// keeps at most two unacknowledged, so a viewer slower than the stream gets the newest frame
-// instead of a backlog in the network's buffers.
+// keeps at most `flowWindow` unacknowledged, so a viewer slower than the stream gets the newest
+// frame instead of a backlog in the network's buffers. Two in flight keep a viewer at the
+// stream's rate across a long round trip (one being drawn, one on its way). A viewer that takes
+// longer to decode and draw a frame than the stream's period (a browser drawing in software)
+// gains little from the second: it waits, ageing, while the first is drawn. Such a viewer tries
+// one, and keeps it unless its frame rate falls by more than a third (a long round trip, now
+// between every two frames) or it keeps up with the stream again.
+let flowWindow = 2;
+let streamFps = 30;          // from the stream's description
+const drawPeriods = [];      // ms between the last frames drawn
+let periodWithTwo = 0;       // the median draw period when the window went down to 1
+let retryAt = 0;             // performance.now() before which the window stays 2
 function acknowledge() {
   if (socket.readyState === WebSocket.OPEN) socket.send('{"type":"ack"}');
 }
+function setFlowWindow(n) {
+  if (n === flowWindow || socket.readyState !== WebSocket.OPEN) return;
+  flowWindow = n;
+  drawPeriods.length = 0;
+  socket.send(JSON.stringify({ type: 'flow', window: n }));
+  document.body.dataset.flowWindow = String(n);
+}
+function adaptFlowWindow() {
+  if (drawPeriods.length < 20 || paused) return;
+  const drawn = median(drawPeriods), period = 1000 / streamFps;
+  if (flowWindow === 2 && drawn > 1.25 * period && performance.now() >= retryAt) {
+    periodWithTwo = drawn;
+    setFlowWindow(1);
+  } else if (flowWindow === 1 && (drawn < period || drawn > 1.5 * periodWithTwo)) {
+    if (drawn > 1.5 * periodWithTwo) retryAt = performance.now() + 30000;
+    setFlowWindow(2);
+  }
+}
+setInterval(adaptFlowWindow, 1000);
 
 let paused = false;
 let decoding = false;
@@ -146,10 +175,17 @@ function show(frame, geometry) {
   $('frame').textContent = h.frame;
   $('triangles').textContent = h.triangles.toLocaleString('en');
   $('reconstruct').textContent = `${h.reconstruct_ms.toFixed(1)} + ${h.encode_ms.toFixed(1)} ms`;
+  // With one frame in flight the next is asked for as soon as this one is decoded, so that its
+  // transfer and decoding overlap this one's drawing; with two, once this one is drawn.
+  const askedEarly = flowWindow === 1;
+  if (askedEarly) acknowledge();
   // Drawn at the next animation frame: latency is measured there.
   requestAnimationFrame(() => {
-    acknowledge();
-    drawnTimes.push(performance.now());
+    const now = performance.now();
+    if (drawnTimes.length > 0) drawPeriods.push(now - drawnTimes[drawnTimes.length - 1]);
+    if (drawPeriods.length > 30) drawPeriods.shift();
+    if (!askedEarly) acknowledge();
+    drawnTimes.push(now);
     latencies.push(Date.now() - h.capture_time_ms);
     if (latencies.length > 60) latencies.shift();
     document.body.dataset.frames = String(Number(document.body.dataset.frames || 0) + 1);
@@ -186,8 +222,11 @@ function connect() {
   socket.binaryType = 'arraybuffer';
   socket.onopen = () => {
     $('status').textContent = 'connected';
-    // Two frames in flight: one being drawn, one on its way.
-    socket.send(JSON.stringify({ type: 'flow', window: 2 }));
+    flowWindow = 2;  // a new connection starts over (flow control above)
+    drawPeriods.length = 0;
+    retryAt = 0;
+    socket.send(JSON.stringify({ type: 'flow', window: flowWindow }));
+    document.body.dataset.flowWindow = String(flowWindow);
   };
   socket.onclose = (event) => {
     $('status').textContent = `disconnected (${event.code}${event.reason ? `: ${event.reason}` : ''}); retrying…`;
@@ -198,6 +237,7 @@ function connect() {
       const message = JSON.parse(event.data);
       if (message.type === 'hello') {
         cameras = message.cameras;
+        if (message.fps > 0) streamFps = message.fps;
         const select = $('viewpoint');
         select.length = 1;
         cameras.forEach((c, i) => select.add(new Option(c.name, String(i))));
