@@ -61,18 +61,19 @@ ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std:
   if (m.depth() != CV_8U) {
     throw InvalidInput(source + ": bit depth: colour must be 8-bit, got " + describe(m));
   }
-  cv::Mat rgb;
+  int conversion = 0;
   switch (m.channels()) {
-    case 1: cv::cvtColor(m, rgb, cv::COLOR_GRAY2RGB); break;
-    case 3: cv::cvtColor(m, rgb, cv::COLOR_BGR2RGB); break;
-    case 4: cv::cvtColor(m, rgb, cv::COLOR_BGRA2RGB); break;
+    case 1: conversion = cv::COLOR_GRAY2RGB; break;
+    case 3: conversion = cv::COLOR_BGR2RGB; break;
+    case 4: conversion = cv::COLOR_BGRA2RGB; break;
     default: throw InvalidInput(source + ": colour image has " + std::to_string(m.channels()) + " channels");
   }
-  ColorImage color(rgb.cols, rgb.rows);
-  for (int v = 0; v < rgb.rows; ++v) {
-    const auto* row = rgb.ptr<cv::Vec3b>(v);
-    for (int u = 0; u < rgb.cols; ++u) color(u, v) = {row[u][0], row[u][1], row[u][2]};
-  }
+  // Converted straight into the image's pixels (Rgb8 is three packed bytes, as CV_8UC3): no
+  // intermediate image and no copy of it.
+  static_assert(sizeof(Rgb8) == 3);
+  ColorImage color(m.cols, m.rows);
+  cv::Mat rgb(m.rows, m.cols, CV_8UC3, color.data.data());
+  cv::cvtColor(m, rgb, conversion);
   return color;
 }
 
