@@ -158,13 +158,14 @@ void run_serve(ServeArgs& args) {
   pipeline_options.queue_depth = 1;
 
   double last_report = epoch_ms();
-  long frames_since = 0, bytes_since = 0;
+  long frames_since = 0, bytes_since = 0, sequence = 0;
   const PipelineStats stats = run_pipeline(source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
     const Clock::time_point t = Clock::now();
     const std::string draco = encode_draco(frame.result.mesh, quantization_box(frame.result.mesh, reconstruction.rig().volume), args.draco);
     const double encode_ms = ms_since(t);
     const nlohmann::ordered_json header = {{"type", "frame"},
                                            {"frame", frame.index},
+                                           {"sequence", sequence++},  // frames broadcast before this one
                                            {"capture_time_ms", frame.capture_time_ms},
                                            {"sent_time_ms", epoch_ms()},
                                            {"triangles", frame.result.mesh.triangle_count()},

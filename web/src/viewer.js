@@ -117,17 +117,19 @@ const draco = new DRACOLoader();
 draco.setDecoderPath('draco/');
 draco.setWorkerLimit(2);
 
-// Flow control: every frame received is acknowledged once, when drawn or skipped, and the server
-// keeps at most `flowWindow` unacknowledged, so a viewer slower than the stream gets the newest
-// frame instead of a backlog in the network's buffers. Two in flight keep a viewer at the
-// stream's rate across a long round trip (one being drawn, one on its way). A viewer that takes
-// longer to decode and draw a frame than the stream's period (a browser drawing in software)
-// gains little from the second: it waits, ageing, while the first is drawn. Such a viewer tries
-// one, and keeps it unless its frame rate falls by more than a third (a long round trip, now
-// between every two frames) or it keeps up with the stream again.
+// Flow control: every frame received is acknowledged once (when it is decoded or drawn, skipped
+// for a newer one, or cannot be read), and the server keeps at most `flowWindow` unacknowledged,
+// so a viewer slower than the stream gets the newest frame instead of a backlog in the network's
+// buffers. Two in flight keep a viewer at the stream's rate across a long round trip (one being
+// drawn, one on its way). A viewer that draws fewer frames than the stream makes (a browser
+// drawing in software) gains little from the second: it waits, ageing, while the first is drawn.
+// Such a viewer tries one, and goes back to two if its frame rate falls by more than a third (a
+// long round trip, now between every two frames) or it keeps up with the stream again, then
+// stays with two for 30 s.
 let flowWindow = 2;
-let streamFps = 30;          // from the stream's description
 const drawPeriods = [];      // ms between the last frames drawn
+const frameSteps = [];       // frames broadcast from one frame drawn to the next (1: none missed)
+let lastDrawnFrame = null;
 let periodWithTwo = 0;       // the median draw period when the window went down to 1
 let retryAt = 0;             // performance.now() before which the window stays 2
 function acknowledge() {
@@ -136,18 +138,19 @@ function acknowledge() {
 function setFlowWindow(n) {
   if (n === flowWindow || socket.readyState !== WebSocket.OPEN) return;
   flowWindow = n;
-  drawPeriods.length = 0;
+  drawPeriods.length = frameSteps.length = 0;
   socket.send(JSON.stringify({ type: 'flow', window: n }));
   document.body.dataset.flowWindow = String(n);
 }
 function adaptFlowWindow() {
-  if (drawPeriods.length < 20 || paused) return;
-  const drawn = median(drawPeriods), period = 1000 / streamFps;
-  if (flowWindow === 2 && drawn > 1.25 * period && performance.now() >= retryAt) {
+  if (drawPeriods.length < 20 || frameSteps.length < 20 || paused || document.hidden) return;
+  const drawn = median(drawPeriods);
+  const framesPerDrawn = frameSteps.reduce((sum, s) => sum + s, 0) / frameSteps.length;
+  if (flowWindow === 2 && framesPerDrawn > 1.25 && performance.now() >= retryAt) {
     periodWithTwo = drawn;
     setFlowWindow(1);
-  } else if (flowWindow === 1 && (drawn < period || drawn > 1.5 * periodWithTwo)) {
-    if (drawn > 1.5 * periodWithTwo) retryAt = performance.now() + 30000;
+  } else if (flowWindow === 1 && (framesPerDrawn < 1.1 || drawn > 1.5 * periodWithTwo)) {
+    retryAt = performance.now() + 30000;
     setFlowWindow(2);
   }
 }
@@ -176,8 +179,14 @@ function show(frame, geometry) {
   $('triangles').textContent = h.triangles.toLocaleString('en');
   $('reconstruct').textContent = `${h.reconstruct_ms.toFixed(1)} + ${h.encode_ms.toFixed(1)} ms`;
   // With one frame in flight the next is asked for as soon as this one is decoded, so that its
-  // transfer and decoding overlap this one's drawing; with two, once this one is drawn.
-  const askedEarly = flowWindow === 1;
+  // transfer and decoding overlap this one's drawing; with two, once this one is drawn. A hidden
+  // page draws nothing, and asks for nothing until it does.
+  const askedEarly = flowWindow === 1 && !document.hidden;
+  if (lastDrawnFrame !== null && h.sequence > lastDrawnFrame) {
+    frameSteps.push(h.sequence - lastDrawnFrame);
+    if (frameSteps.length > 30) frameSteps.shift();
+  }
+  lastDrawnFrame = h.sequence;
   if (askedEarly) acknowledge();
   // Drawn at the next animation frame: latency is measured there.
   requestAnimationFrame(() => {
@@ -223,7 +232,8 @@ function connect() {
   socket.onopen = () => {
     $('status').textContent = 'connected';
     flowWindow = 2;  // a new connection starts over (flow control above)
-    drawPeriods.length = 0;
+    drawPeriods.length = frameSteps.length = 0;
+    lastDrawnFrame = null;
     retryAt = 0;
     socket.send(JSON.stringify({ type: 'flow', window: flowWindow }));
     document.body.dataset.flowWindow = String(flowWindow);
@@ -237,7 +247,6 @@ function connect() {
       const message = JSON.parse(event.data);
       if (message.type === 'hello') {
         cameras = message.cameras;
-        if (message.fps > 0) streamFps = message.fps;
         const select = $('viewpoint');
         select.length = 1;
         cameras.forEach((c, i) => select.add(new Option(c.name, String(i))));

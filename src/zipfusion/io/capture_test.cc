@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/image_io.h"
@@ -184,6 +186,31 @@ TEST_F(SmallCapture, GroundTruthRigMustMatchCameras) {
 }
 
 // Every capture in ../shared/data follows the format and loads.
+// Grey and BGRA colour images come out as RGB with their pixels (converted into the image's own
+// buffer, which a conversion that reallocated would leave black).
+TEST(ColorImage, GreyAndAlphaPngsDecodeToTheirPixels) {
+  cv::Mat grey(3, 4, CV_8UC1), bgra(3, 4, CV_8UC4);
+  for (int v = 0; v < 3; ++v) {
+    for (int u = 0; u < 4; ++u) {
+      grey.at<std::uint8_t>(v, u) = static_cast<std::uint8_t>(20 * u + 60 * v + 5);
+      bgra.at<cv::Vec4b>(v, u) = {static_cast<std::uint8_t>(10 + u), static_cast<std::uint8_t>(100 + v), static_cast<std::uint8_t>(200 + u + v), 77};
+    }
+  }
+  std::vector<std::uint8_t> grey_png, bgra_png;
+  ASSERT_TRUE(cv::imencode(".png", grey, grey_png));
+  ASSERT_TRUE(cv::imencode(".png", bgra, bgra_png));
+  const ColorImage from_grey = decode_color_image(grey_png, "grey.png"), from_bgra = decode_color_image(bgra_png, "bgra.png");
+  ASSERT_EQ(from_grey.width, 4);
+  ASSERT_EQ(from_bgra.height, 3);
+  for (int v = 0; v < 3; ++v) {
+    for (int u = 0; u < 4; ++u) {
+      const auto g = static_cast<unsigned char>(20 * u + 60 * v + 5);
+      EXPECT_EQ(from_grey(u, v), (Rgb8{g, g, g}));
+      EXPECT_EQ(from_bgra(u, v), (Rgb8{static_cast<unsigned char>(200 + u + v), static_cast<unsigned char>(100 + v), static_cast<unsigned char>(10 + u)}));
+    }
+  }
+}
+
 TEST(SharedData, EveryCaptureLoads) {
   ASSERT_TRUE(fs::is_directory(kSharedData)) << kSharedData;
   int captures = 0;

@@ -146,6 +146,12 @@ struct Session : std::enable_shared_from_this<Session> {
       }
       ++in_flight;
     }
+    // A frame that goes out is newer than one still held (the window has grown since it was
+    // held): sent after it, the held one would step back in time.
+    if (binary && held) {
+      held.reset();
+      ++server.frames_skipped;
+    }
     const size_t first_waiting = writing ? 1 : 0;
     if (!binary && std::count_if(queue.begin(), queue.end(), [](const auto& m) { return !m.second; }) >= kMaxWaitingReplies) {
       return refuse("commands sent faster than the replies are read");
@@ -212,14 +218,11 @@ struct Session : std::enable_shared_from_this<Session> {
       const int n = command["window"];
       if (n < 0 || n > 8) return false;
       window = n;
+      release_held();  // a larger window (or none) has room for it now
     } else if (type == "ack") {
-      // A frame was drawn: the newest held frame may go.
+      // A frame was drawn (or decoded, or skipped): the newest held frame may go.
       if (in_flight > 0) --in_flight;
-      if (held && (window == 0 || in_flight < window)) {
-        std::shared_ptr<const std::string> next = std::move(held);
-        held.reset();
-        enqueue(std::move(next), true);
-      }
+      release_held();
     } else if (type == "ping") {
       nlohmann::json pong = {{"type", "pong"}};
       if (command.contains("t")) pong["t"] = command["t"];
@@ -228,6 +231,14 @@ struct Session : std::enable_shared_from_this<Session> {
       return false;
     }
     return true;
+  }
+
+  // Sends the held frame if the window has room for it.
+  void release_held() {
+    if (!held || (window > 0 && in_flight >= window)) return;
+    std::shared_ptr<const std::string> next = std::move(held);
+    held.reset();
+    enqueue(std::move(next), true);
   }
 
   // Closes this client only, saying why.

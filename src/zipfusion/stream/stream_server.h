@@ -8,9 +8,9 @@
 //! Every client has its own bounded queue: when a client reads slower than frames come, its
 //! oldest waiting frames are skipped, so it never slows the pipeline or the other clients.
 //! A client's messages to the server are small JSON commands ({"type": "pause" | "resume" |
-//! "ping"}, and for flow control {"type": "flow", "window": N} then {"type": "ack"} per frame
-//! drawn: at most N frames are then unacknowledged and the newest waits, so a viewer slower than
-//! the stream sees the newest frame, not a backlog in the network buffers); an oversized or
+//! "ping"}, and for flow control {"type": "flow", "window": N}, at any time, then {"type": "ack"}
+//! once per frame received: at most N frames are then unacknowledged and the newest waits, so a
+//! viewer slower than the stream sees the newest frame, not a backlog in the network buffers); an oversized or
 //! malformed one closes that client only. With a token, the page and
 //! the stream refuse requests that carry neither ?token=... nor the cookie the page sets.
 //!

@@ -166,6 +166,29 @@ TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
   EXPECT_THROW(client.read(), boost::system::system_error);
 }
 
+// A window that grows sends the held frame at once, so a frame broadcast later never arrives before
+// it (the viewer changes its window while it plays).
+TEST_F(StreamServerTest, AGrowingWindowKeepsFramesInOrder) {
+  StreamServer server({.port = 0}, "{}");
+  Client client(server.port());
+  EXPECT_EQ(client.read(), "{}");
+  client.ws.text(true);
+  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":1})")));
+  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":1})")));
+  EXPECT_EQ(client.read(), R"({"t":1,"type":"pong"})");
+  server.broadcast(frame_message("{\"frame\":0}", ""));
+  server.broadcast(frame_message("{\"frame\":1}", ""));  // held: frame 0 is unacknowledged
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":0}", ""));
+  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":2})")));
+  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":2})")));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":1}", ""));  // released by the larger window, before the reply
+  EXPECT_EQ(client.read(), R"({"t":2,"type":"pong"})");
+  server.broadcast(frame_message("{\"frame\":2}", ""));  // held again: two unacknowledged
+  client.ws.write(net::buffer(std::string(R"({"type":"ack"})")));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":2}", ""));
+  EXPECT_EQ(server.stats().frames_skipped, 0);
+}
+
 TEST_F(StreamServerTest, BadMessagesCloseOnlyTheirClient) {
   StreamServer server({.port = 0}, "{}");
   Client good(server.port()), garbage(server.port()), oversized(server.port());
