@@ -12,6 +12,7 @@
 #include <atomic>
 #include <chrono>
 #include <fstream>
+#include <memory>
 #include <thread>
 
 #include "zipfusion/core/error.h"
@@ -77,7 +78,23 @@ struct Client {
     if (binary != nullptr) *binary = ws.got_binary();
     return beast::buffers_to_string(buffer.data());
   }
+
+  void send(const std::string& command) {
+    ws.text(true);
+    ws.write(net::buffer(command));
+  }
 };
+
+// A client of `server` that has read the stream's description and set a flow window: the server
+// has handled the window once it answers the ping sent after it (commands are handled in order).
+std::unique_ptr<Client> client_with_window(const StreamServer& server, int window) {
+  auto client = std::make_unique<Client>(server.port());
+  EXPECT_EQ(client->read(), "{}");
+  client->send(R"({"type":"flow","window":)" + std::to_string(window) + "}");
+  client->send(R"({"type":"ping","t":1})");
+  EXPECT_EQ(client->read(), R"({"t":1,"type":"pong"})");
+  return client;
+}
 
 class StreamServerTest : public ::testing::Test {
  protected:
@@ -148,12 +165,8 @@ TEST_F(StreamServerTest, WithATokenOnlyItsHoldersAreServed) {
 // then the newest: no backlog builds up in the network for a viewer slower than the stream.
 TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
   StreamServer server({.port = 0}, "{}");
-  Client client(server.port());
-  EXPECT_EQ(client.read(), "{}");
-  client.ws.text(true);
-  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":1})")));
-  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":1})")));
-  EXPECT_EQ(client.read(), R"({"t":1,"type":"pong"})");  // the window is set: commands are handled in order
+  const std::unique_ptr<Client> connection = client_with_window(server, 1);
+  Client& client = *connection;
   for (int k = 0; k < 5; ++k) server.broadcast(frame_message("{\"frame\":" + std::to_string(k) + "}", ""));
   EXPECT_EQ(client.read(), frame_message("{\"frame\":0}", ""));
   // Frames 1 to 3 are skipped while frame 0 is unacknowledged; the newest, 4, waits.
@@ -170,17 +183,13 @@ TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
 // it (the viewer changes its window while it plays).
 TEST_F(StreamServerTest, AGrowingWindowKeepsFramesInOrder) {
   StreamServer server({.port = 0}, "{}");
-  Client client(server.port());
-  EXPECT_EQ(client.read(), "{}");
-  client.ws.text(true);
-  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":1})")));
-  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":1})")));
-  EXPECT_EQ(client.read(), R"({"t":1,"type":"pong"})");
+  const std::unique_ptr<Client> connection = client_with_window(server, 1);
+  Client& client = *connection;
   server.broadcast(frame_message("{\"frame\":0}", ""));
   server.broadcast(frame_message("{\"frame\":1}", ""));  // held: frame 0 is unacknowledged
   EXPECT_EQ(client.read(), frame_message("{\"frame\":0}", ""));
-  client.ws.write(net::buffer(std::string(R"({"type":"flow","window":2})")));
-  client.ws.write(net::buffer(std::string(R"({"type":"ping","t":2})")));
+  client.send(R"({"type":"flow","window":2})");
+  client.send(R"({"type":"ping","t":2})");
   EXPECT_EQ(client.read(), frame_message("{\"frame\":1}", ""));  // released by the larger window, before the reply
   EXPECT_EQ(client.read(), R"({"t":2,"type":"pong"})");
   server.broadcast(frame_message("{\"frame\":2}", ""));  // held again: two unacknowledged
