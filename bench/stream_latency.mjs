@@ -21,11 +21,11 @@ while (Date.now() < end) {
   await page.waitForTimeout(2000);
   const latency = parseFloat(await page.textContent('#latency'));
   const fps = parseFloat(await page.textContent('#fps'));
-  const window = await page.evaluate(() => `${document.body.dataset.flowWindow}`);
-  samples.push({ latency, fps, window });
+  const flowWindow = await page.evaluate(() => document.body.dataset.flowWindow);
+  samples.push({ latency, fps, flowWindow });
 }
 await browser.close();
 const median = (v) => [...v].sort((a, b) => a - b)[Math.floor(v.length / 2)];
 const result = { latency_ms_median: median(samples.map((s) => s.latency)), fps_median: median(samples.map((s) => s.fps)), samples: samples.length,
-  windows: samples.map((s) => s.window) };
+  windows: samples.map((s) => s.flowWindow) };
 console.log(JSON.stringify(result));

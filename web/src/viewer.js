@@ -95,6 +95,11 @@ function median(values) {
   const sorted = [...values].sort((a, b) => a - b);
   return sorted[Math.floor(sorted.length / 2)];
 }
+// Appends to a list of the last `keep` values.
+function pushLast(list, value, keep) {
+  list.push(value);
+  if (list.length > keep) list.shift();
+}
 function trim(list, keepMs, now, at = (x) => x) {
   while (list.length > 0 && now - at(list[0]) > keepMs) list.shift();
 }
@@ -129,7 +134,7 @@ draco.setWorkerLimit(2);
 let flowWindow = 2;
 const drawPeriods = [];      // ms between the last frames drawn
 const frameSteps = [];       // frames broadcast from one frame drawn to the next (1: none missed)
-let lastDrawnFrame = null;
+let lastDrawnSequence = null;
 let periodWithTwo = 0;       // the median draw period when the window went down to 1
 let retryAt = 0;             // performance.now() before which the window stays 2
 function acknowledge() {
@@ -182,21 +187,18 @@ function show(frame, geometry) {
   // transfer and decoding overlap this one's drawing; with two, once this one is drawn. A hidden
   // page draws nothing, and asks for nothing until it does.
   const askedEarly = flowWindow === 1 && !document.hidden;
-  if (lastDrawnFrame !== null && h.sequence > lastDrawnFrame) {
-    frameSteps.push(h.sequence - lastDrawnFrame);
-    if (frameSteps.length > 30) frameSteps.shift();
+  if (lastDrawnSequence !== null && h.sequence > lastDrawnSequence) {
+    pushLast(frameSteps, h.sequence - lastDrawnSequence, 30);
   }
-  lastDrawnFrame = h.sequence;
+  lastDrawnSequence = h.sequence;
   if (askedEarly) acknowledge();
   // Drawn at the next animation frame: latency is measured there.
   requestAnimationFrame(() => {
     const now = performance.now();
-    if (drawnTimes.length > 0) drawPeriods.push(now - drawnTimes[drawnTimes.length - 1]);
-    if (drawPeriods.length > 30) drawPeriods.shift();
+    if (drawnTimes.length > 0) pushLast(drawPeriods, now - drawnTimes[drawnTimes.length - 1], 30);
     if (!askedEarly) acknowledge();
     drawnTimes.push(now);
-    latencies.push(Date.now() - h.capture_time_ms);
-    if (latencies.length > 60) latencies.shift();
+    pushLast(latencies, Date.now() - h.capture_time_ms, 60);
     document.body.dataset.frames = String(Number(document.body.dataset.frames || 0) + 1);
   });
 }
@@ -233,7 +235,7 @@ function connect() {
     $('status').textContent = 'connected';
     flowWindow = 2;  // a new connection starts over (flow control above)
     drawPeriods.length = frameSteps.length = 0;
-    lastDrawnFrame = null;
+    lastDrawnSequence = null;
     retryAt = 0;
     socket.send(JSON.stringify({ type: 'flow', window: flowWindow }));
     document.body.dataset.flowWindow = String(flowWindow);
