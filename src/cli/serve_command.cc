@@ -156,16 +156,20 @@ void run_serve(ServeArgs& args) {
   PipelineOptions pipeline_options = reconstruction.pipeline_options();
   pipeline_options.source_policy = QueuePolicy::kDropOldest;  // live: never fall behind
   pipeline_options.queue_depth = 1;
+  // Only the frames some viewer can be sent at once are made: a viewer slower than the stream
+  // then gets a frame made for it when it is ready, not one that aged while it was busy, and the
+  // CPU it leaves (a browser drawing in software on the same machine) goes to drawing.
+  pipeline_options.wants_frame = [&] { return server.reserve_frame(); };
 
   double last_report = epoch_ms();
-  long frames_since = 0, bytes_since = 0, sequence = 0;
+  long frames_since = 0, bytes_since = 0;
   const PipelineStats stats = run_pipeline(source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
     const Clock::time_point t = Clock::now();
     const std::string draco = encode_draco(frame.result.mesh, quantization_box(frame.result.mesh, reconstruction.rig().volume), args.draco);
     const double encode_ms = ms_since(t);
     const nlohmann::ordered_json header = {{"type", "frame"},
                                            {"frame", frame.index},
-                                           {"sequence", sequence++},  // frames broadcast before this one
+                                           {"sequence", frame.sequence},  // the stream's frames before this one, made or not
                                            {"capture_time_ms", frame.capture_time_ms},
                                            {"sent_time_ms", epoch_ms()},
                                            {"triangles", frame.result.mesh.triangle_count()},
@@ -189,8 +193,9 @@ void run_serve(ServeArgs& args) {
     }
   }, pipeline_options);
   const StreamServerStats s = server.stats();
-  std::printf("served %d frame sets (%ld dropped by the pipeline to keep up), %ld frames to %ld clients (%ld skipped by slow clients), %.1f MB\n",
-              stats.frames, stats.dropped, s.frames_sent, s.clients_total, s.frames_skipped, s.bytes_sent / 1e6);
+  std::printf("served %d frame sets (%ld dropped by the pipeline to keep up, %ld not made: no viewer ready for them), %ld frames to %ld clients "
+              "(%ld skipped by slow clients), %.1f MB\n",
+              stats.frames, stats.dropped, stats.unwanted, s.frames_sent, s.clients_total, s.frames_skipped, s.bytes_sent / 1e6);
 }
 
 }  // namespace

@@ -125,12 +125,14 @@ draco.setWorkerLimit(2);
 // Flow control: every frame received is acknowledged once (when it is decoded or drawn, skipped
 // for a newer one, or cannot be read), and the server keeps at most `flowWindow` unacknowledged,
 // so a viewer slower than the stream gets the newest frame instead of a backlog in the network's
-// buffers. Two in flight keep a viewer at the stream's rate across a long round trip (one being
-// drawn, one on its way). A viewer that draws fewer frames than the stream makes (a browser
-// drawing in software) gains little from the second: it waits, ageing, while the first is drawn.
-// Such a viewer tries one, and goes back to two if its frame rate falls by more than a third (a
-// long round trip, now between every two frames) or it keeps up with the stream again, then
-// stays with two for 30 s.
+// buffers; the server makes a frame only when some viewer has room for it, so the frame a slow
+// viewer gets is made for it when it asks. Two in flight keep a viewer at the stream's rate across
+// a long round trip (one being drawn, one on its way). A viewer that draws fewer frames than the
+// stream has (a browser drawing in software) gains little from the second: it waits, ageing,
+// while the first is drawn. Such a viewer tries one, and goes back to two if its frame rate
+// halves (a long round trip, now between every two frames; one in flight costs even a slow
+// viewer about a third of its rate, as the next frame is begun only when it asks) or it keeps up
+// with the stream again, then stays with two for 30 s.
 let flowWindow = 2;
 const drawPeriods = [];      // ms between the last frames drawn
 const frameSteps = [];       // frames broadcast from one frame drawn to the next (1: none missed)
@@ -154,7 +156,7 @@ function adaptFlowWindow() {
   if (flowWindow === 2 && framesPerDrawn > 1.25 && performance.now() >= retryAt) {
     periodWithTwo = drawn;
     setFlowWindow(1);
-  } else if (flowWindow === 1 && (framesPerDrawn < 1.1 || drawn > 1.5 * periodWithTwo)) {
+  } else if (flowWindow === 1 && (framesPerDrawn < 1.1 || drawn > 2 * periodWithTwo)) {
     retryAt = performance.now() + 30000;
     setFlowWindow(2);
   }

@@ -9,6 +9,9 @@
 //! Offline (a capture on disk) every frame is processed: a full queue makes its producer wait.
 //! Live (a device that will not wait) the source queue drops its oldest frame set instead, so the
 //! pipeline shows the newest frames and never falls behind; the drops are counted in the stats.
+//! Live, the reconstruction also takes its next frame set only once the sink has taken the
+//! previous mesh: a mesh waiting for a busy sink (say, compression) only ages, and the frame set
+//! taken after it would age with it, so the newest one is taken when the sink can soon have it.
 //!
 //! Thread safety: run_pipeline() owns its threads and joins them before it returns; the source is
 //! called from one thread, the sink from another, which also hands each mesh back to the
@@ -57,8 +60,15 @@ class BoundedQueue {
     if (items_.empty()) return std::nullopt;
     T item = std::move(items_.front());
     items_.pop_front();
-    not_full_.notify_one();
+    not_full_.notify_all();  // a producer waiting for room, and one waiting for the queue to empty
     return item;
+  }
+
+  //! Waits until the queue is empty; false when it was closed.
+  bool wait_until_empty() {
+    std::unique_lock lock(mutex_);
+    not_full_.wait(lock, [&] { return closed_ || items_.empty(); });
+    return !closed_;
   }
 
   //! No more pushes; pop() returns what is left, then nothing.
@@ -94,6 +104,7 @@ FrameSource capture_source(const Capture& capture, int begin, int end);
 //! One reconstructed frame set, as the sink sees it.
 struct PipelineFrame {
   int index = 0;
+  long sequence = 0;           // frame sets the reconstruction took before this one, made or unwanted
   double capture_time_ms = 0;  // the frame set's, carried through
   double decode_ms = 0;
   FrameResult result;
@@ -105,11 +116,15 @@ struct PipelineOptions {
   //! Called on the reconstruction thread before each frame set (e.g. to swap in poses refined by
   //! BackgroundRegistration and offer it the frame set); empty = nothing. Must not block.
   std::function<void(const FrameSet&, FrameReconstructor&)> before_reconstruct;
+  //! Called on the reconstruction thread for each frame set it takes: false skips it, unmade
+  //! (a stream nobody can take a frame from now); empty = every frame set is wanted.
+  std::function<bool()> wants_frame;
 };
 
 struct PipelineStats {
   int frames = 0;          // frame sets reconstructed and handed to the sink
   long dropped = 0;        // frame sets the source queue discarded (live only)
+  long unwanted = 0;       // frame sets skipped because the sink wanted none (wants_frame)
   double wall_ms = 0;      // first decode to last sink call
 };
 

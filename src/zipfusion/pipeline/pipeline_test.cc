@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <stdexcept>
 #include <thread>
@@ -110,6 +111,47 @@ TEST_F(PipelineTest, LiveSourceDropsFramesWhenTheSinkIsSlow) {
       {.queue_depth = 1, .source_policy = QueuePolicy::kDropOldest});
   EXPECT_GT(stats.dropped, 0);
   EXPECT_EQ(stats.frames + stats.dropped, 200);
+}
+
+TEST_F(PipelineTest, LiveReconstructionTakesAFrameSetOnlyWhenTheSinkHasRoom) {
+  // A mesh finished while another waits for a busy sink would age by a whole sink call, and so
+  // would the frame set behind it. Counted in sink calls, not time: between the reconstruction
+  // taking a frame set and the sink starting on its mesh, at most one sink call may end.
+  std::atomic<int> sink_calls_done = 0;
+  std::vector<int> done_when_taken(200, -1);
+  PipelineOptions options{.queue_depth = 1, .source_policy = QueuePolicy::kDropOldest};
+  options.before_reconstruct = [&](const FrameSet& frames, FrameReconstructor&) { done_when_taken[frames.index] = sink_calls_done; };
+  int most_calls_waited = 0;
+  int sunk = 0;
+  FrameSource frames_every_200us = [source = empty_frames(200, 3)](double& decode_ms) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));  // a camera: the frames keep coming
+    return source(decode_ms);
+  };
+  run_pipeline(
+      frames_every_200us, reconstructor,
+      [&](PipelineFrame& frame) {
+        most_calls_waited = std::max(most_calls_waited, sink_calls_done - done_when_taken[frame.index]);
+        ++sunk;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        ++sink_calls_done;
+      },
+      options);
+  EXPECT_GT(sunk, 10);
+  EXPECT_LE(most_calls_waited, 1);
+}
+
+TEST_F(PipelineTest, UnwantedFrameSetsAreNotMadeButKeepTheirPlaceInTheSequence) {
+  PipelineOptions options;
+  options.wants_frame = [n = 0]() mutable { return n++ % 3 == 0; };  // a sink that wants every third
+  std::vector<long> sequences;
+  const PipelineStats stats = run_pipeline(empty_frames(30, 3), reconstructor, [&](PipelineFrame& frame) {
+    sequences.push_back(frame.sequence);
+    EXPECT_EQ(frame.index, frame.sequence);
+  }, options);
+  EXPECT_EQ(stats.frames, 10);
+  EXPECT_EQ(stats.unwanted, 20);
+  ASSERT_EQ(sequences.size(), 10u);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(sequences[i], 3 * i);
 }
 
 }  // namespace

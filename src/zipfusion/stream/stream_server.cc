@@ -96,6 +96,7 @@ constexpr int kMaxClients = 64;
 // Text messages (the hello, pongs) a client may have waiting: more means it sends commands and
 // does not read, and it is closed.
 constexpr int kMaxWaitingReplies = 8;
+constexpr int kUnlimitedRoom = 1 << 20;  // a client without flow control takes every frame
 
 struct StreamServer::Impl {
   StreamServerOptions options;
@@ -108,8 +109,12 @@ struct StreamServer::Impl {
   std::thread thread;
   std::atomic<long> clients_total{0}, refused{0}, closed_bad_message{0}, frames_broadcast{0}, frames_sent{0}, frames_skipped{0}, bytes_sent{0};
   std::atomic<int> clients{0};
+  // Frames a client could be sent at once, the most over the clients (see Session::room), and
+  // frames reserved for it (reserve_frame) that broadcast() has not handed on yet.
+  std::atomic<int> most_room{0}, frames_reserved{0};
 
   void accept();
+  void update_room();  // on the network thread, after any change of a session's room
   bool authorised(const http::request<http::string_body>& request, const std::string& query) const;
   bool same_origin(const http::request<http::string_body>& request) const;
 };
@@ -126,6 +131,7 @@ struct Session : std::enable_shared_from_this<Session> {
     ws.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
       if (ec) return;
       self->server.sessions.insert(self);
+      self->server.update_room();
       self->server.clients = static_cast<int>(self->server.sessions.size());
       ++self->server.clients_total;
       self->enqueue(std::make_shared<const std::string>(self->server.hello), false);
@@ -145,6 +151,7 @@ struct Session : std::enable_shared_from_this<Session> {
         return;
       }
       ++in_flight;
+      server.update_room();
     }
     // A frame that goes out is newer than one still held (the window has grown since it was
     // held): sent after it, the held one would step back in time.
@@ -162,6 +169,7 @@ struct Session : std::enable_shared_from_this<Session> {
           queue.erase(queue.begin() + static_cast<long>(i));
           ++server.frames_skipped;
           if (window > 0 && in_flight > 0) --in_flight;  // never sent, so never acknowledged
+          server.update_room();
           break;
         }
       }
@@ -198,6 +206,7 @@ struct Session : std::enable_shared_from_this<Session> {
       const std::string text = beast::buffers_to_string(self->incoming.data());
       self->incoming.consume(self->incoming.size());
       if (!self->handle(text)) return self->refuse("malformed message");
+      self->server.update_room();
       self->read();
     });
   }
@@ -249,10 +258,19 @@ struct Session : std::enable_shared_from_this<Session> {
     ws.async_close(websocket::close_reason(websocket::close_code::policy_error, why), [self = shared_from_this()](beast::error_code) { self->finish(); });
   }
 
+  // Frames this client would be sent at once: none while paused, as many as its flow window has
+  // room for, or any number without flow control (its queue skips what it cannot read).
+  int room() const {
+    if (closed || paused) return 0;
+    if (window == 0) return kUnlimitedRoom;
+    return std::max(0, window - in_flight);
+  }
+
   void finish() {
     closed = true;
     server.sessions.erase(shared_from_this());
     server.clients = static_cast<int>(server.sessions.size());
+    server.update_room();
   }
 
   websocket::stream<beast::tcp_stream> ws;
@@ -351,6 +369,12 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
 
 }  // namespace
 
+void StreamServer::Impl::update_room() {
+  int most = 0;
+  for (const auto& session : sessions) most = std::max(most, session->room());
+  most_room = most;
+}
+
 void StreamServer::Impl::accept() {
   acceptor.async_accept(io, [this](beast::error_code ec, tcp::socket socket) {
     if (ec == net::error::operation_aborted) return;
@@ -362,6 +386,10 @@ void StreamServer::Impl::accept() {
       });
       return;
     }
+    // Without it, a frame's last segment waits for the viewer's delayed ACK (40 ms on Linux)
+    // whenever an earlier one is unacknowledged: Nagle's algorithm, made for typing.
+    beast::error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
     std::make_shared<HttpSession>(std::move(socket), *this)->read();
     accept();
   });
@@ -452,7 +480,19 @@ void StreamServer::broadcast(std::string message) {
   net::post(impl_->io, [impl = impl_.get(), shared] {
     // enqueue may close a session (refuse), which leaves the set only in a later handler.
     for (const auto& session : impl->sessions) session->enqueue(shared, true);
+    // The clients' room now counts this frame: its reservation, if it had one, is spent.
+    int reserved = impl->frames_reserved;
+    while (reserved > 0 && !impl->frames_reserved.compare_exchange_weak(reserved, reserved - 1)) {
+    }
   });
+}
+
+bool StreamServer::reserve_frame() {
+  int reserved = impl_->frames_reserved;
+  while (reserved < impl_->most_room) {
+    if (impl_->frames_reserved.compare_exchange_weak(reserved, reserved + 1)) return true;
+  }
+  return false;
 }
 
 StreamServerStats StreamServer::stats() const {

@@ -65,6 +65,13 @@ class StreamServer {
   //! Queues a frame message for every connected client; returns at once.
   void broadcast(std::string message);
 
+  //! Whether some client would be sent one more frame at once (connected, not paused, its flow
+  //! window not full), counting the frames reserved before and not yet broadcast; if so, reserves
+  //! a place for it, which the next broadcast() uses. A stream makes only the frames reserved, so
+  //! a viewer slower than the stream gets a fresh frame when it is ready, not an old one made
+  //! while it was busy, and nobody watching costs nothing.
+  bool reserve_frame();
+
   StreamServerStats stats() const;
 
   struct Impl;

@@ -179,6 +179,36 @@ TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
   EXPECT_THROW(client.read(), boost::system::system_error);
 }
 
+// A stream makes a frame only when some client can be sent it at once (StreamServer::
+// reserve_frame): nobody watching, nothing made; a viewer with a window of one, one frame per ack.
+TEST_F(StreamServerTest, FramesAreReservedOnlyForClientsWithRoom) {
+  StreamServer server({.port = 0}, "{}");
+  EXPECT_FALSE(server.reserve_frame());  // no client
+  const std::unique_ptr<Client> connection = client_with_window(server, 1);
+  Client& client = *connection;
+  EXPECT_TRUE(server.reserve_frame());
+  EXPECT_FALSE(server.reserve_frame());  // the one place is taken by the frame being made
+  server.broadcast(frame_message("{\"frame\":0}", ""));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":0}", ""));
+  EXPECT_FALSE(server.reserve_frame());  // frame 0 is unacknowledged
+  client.send(R"({"type":"ack"})");
+  client.send(R"({"type":"ping","t":3})");
+  EXPECT_EQ(client.read(), R"({"t":3,"type":"pong"})");
+  EXPECT_TRUE(server.reserve_frame());
+  // Paused, it wants nothing; a client without flow control takes every frame.
+  server.broadcast(frame_message("{\"frame\":1}", ""));
+  EXPECT_EQ(client.read(), frame_message("{\"frame\":1}", ""));
+  client.send(R"({"type":"ack"})");
+  client.send(R"({"type":"pause"})");
+  client.send(R"({"type":"ping","t":4})");
+  EXPECT_EQ(client.read(), R"({"t":4,"type":"pong"})");
+  EXPECT_FALSE(server.reserve_frame());
+  Client unlimited(server.port());
+  EXPECT_EQ(unlimited.read(), "{}");
+  while (!server.reserve_frame()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  for (int k = 0; k < 10; ++k) EXPECT_TRUE(server.reserve_frame());
+}
+
 // A window that grows sends the held frame at once, so a frame broadcast later never arrives before
 // it (the viewer changes its window while it plays).
 TEST_F(StreamServerTest, AGrowingWindowKeepsFramesInOrder) {
