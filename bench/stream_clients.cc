@@ -2,8 +2,10 @@
 // never reads): per reading client the frames received per second, and over all of them the
 // latency from capture to arrival (the header's capture_time_ms against this machine's clock, so
 // on loopback) and the frame size. Issue 8's targets: every reader at the stream's full rate
-// while one client stalls. Usage:
-//   zf_stream_clients --port P [--clients 20] [--stalled 1] [--seconds 10] [--json]
+// while one client stalls. With --window N the readers ask for flow control with N frames in
+// flight and acknowledge each frame as it arrives, as a viewer with a GPU would soon after.
+// Usage:
+//   zf_stream_clients --port P [--clients 20] [--stalled 1] [--window 0] [--seconds 10] [--json]
 
 #include <utility>  // before Asio: Boost 1.74's awaitable.hpp uses std::exchange without it
 
@@ -48,7 +50,7 @@ struct Reader {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int port = 8080, clients = 20, stalled = 1;
+  int port = 8080, clients = 20, stalled = 1, window = 0;
   double seconds = 10;
   bool json = false;
   std::string token;
@@ -59,6 +61,7 @@ int main(int argc, char** argv) {
     else if (a == "--clients") clients = std::stoi(value());
     else if (a == "--stalled") stalled = std::stoi(value());
     else if (a == "--seconds") seconds = std::stod(value());
+    else if (a == "--window") window = std::stoi(value());
     else if (a == "--token") token = value();
     else if (a == "--json") json = true;
     else {
@@ -87,7 +90,12 @@ int main(int argc, char** argv) {
     threads.emplace_back([&, c] {
       Reader& r = readers[c];
       websocket::stream<tcp::socket>& ws = *sockets[c];
+      auto send = [&ws](const std::string& command) {
+        ws.text(true);
+        ws.write(net::buffer(command));
+      };
       try {
+        if (window > 0) send(R"({"type":"flow","window":)" + std::to_string(window) + "}");
         while (std::chrono::steady_clock::now() < end) {
           beast::flat_buffer buffer;
           ws.read(buffer);
@@ -97,6 +105,7 @@ int main(int argc, char** argv) {
           if (message.size() < 8 || message.compare(0, 4, "ZFM1") != 0) continue;
           std::uint32_t length = 0;
           std::memcpy(&length, message.data() + 4, 4);
+          if (window > 0) send(R"({"type":"ack"})");
           const nlohmann::json header = nlohmann::json::parse(message.substr(8, length));
           if (r.frames == 0) r.first_ms = now;
           r.last_ms = now;
@@ -126,6 +135,7 @@ int main(int argc, char** argv) {
   if (json) {
     std::printf("%s\n", nlohmann::json({{"clients", clients},
                                         {"stalled", stalled},
+                                        {"window", window},
                                         {"seconds", seconds},
                                         {"reader_fps_min", min_rate},
                                         {"reader_fps_max", max_rate},

@@ -159,7 +159,8 @@ void run_serve(ServeArgs& args) {
   // Only the frames some viewer can be sent at once are made: a viewer slower than the stream
   // then gets a frame made for it when it is ready, not one that aged while it was busy, and the
   // CPU it leaves (a browser drawing in software on the same machine) goes to drawing.
-  pipeline_options.wants_frame = [&] { return server.reserve_frame(); };
+  pipeline_options.wants_frame = [&] { return server.reserve_frame(); };  // the sink broadcasts each frame made
+  pipeline_options.take_when_sink_ready = true;
 
   double last_report = epoch_ms();
   long frames_since = 0, bytes_since = 0;

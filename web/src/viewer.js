@@ -125,20 +125,22 @@ draco.setWorkerLimit(2);
 // Flow control: every frame received is acknowledged once (when it is decoded or drawn, skipped
 // for a newer one, or cannot be read), and the server keeps at most `flowWindow` unacknowledged,
 // so a viewer slower than the stream gets the newest frame instead of a backlog in the network's
-// buffers; the server makes a frame only when some viewer has room for it, so the frame a slow
-// viewer gets is made for it when it asks. Two in flight keep a viewer at the stream's rate across
-// a long round trip (one being drawn, one on its way). A viewer that draws fewer frames than the
-// stream has (a browser drawing in software) gains little from the second: it waits, ageing,
-// while the first is drawn. Such a viewer tries one, and goes back to two if its frame rate
-// halves (a long round trip, now between every two frames; one in flight costs even a slow
-// viewer about a third of its rate, as the next frame is begun only when it asks) or it keeps up
-// with the stream again, then stays with two for 30 s.
-let flowWindow = 2;
+// buffers. The server makes a frame only when a viewer has room for it, so a frame's making
+// (reconstruction, compression: tens of ms) is part of the loop from one acknowledgement to the
+// next frame, and a viewer that keeps up needs several in flight to get every frame: with
+// instant acknowledgements, one gives 16-19 frames/s of a 30 fps stream, two 29.5, three 30
+// (zf_stream_clients --window). A viewer that draws fewer frames than the stream has (a browser
+// drawing in software) gains little from more than one: a frame waits, ageing, while the one
+// before is drawn. Such a viewer tries one, and goes back to the wide window if its frame rate
+// halves (a long round trip, now between every two frames) or it keeps up with the stream
+// again, then stays wide for 30 s.
+const WIDE_WINDOW = 3;
+let flowWindow = WIDE_WINDOW;
 const drawPeriods = [];      // ms between the last frames drawn
-const frameSteps = [];       // frames broadcast from one frame drawn to the next (1: none missed)
+const frameSteps = [];       // the stream's frame sets from one frame drawn to the next (1: none missed)
 let lastDrawnSequence = null;
-let periodWithTwo = 0;       // the median draw period when the window went down to 1
-let retryAt = 0;             // performance.now() before which the window stays 2
+let periodWide = 0;          // the median draw period when the window went down to 1
+let retryAt = 0;             // performance.now() before which the window stays wide
 function acknowledge() {
   if (socket.readyState === WebSocket.OPEN) socket.send('{"type":"ack"}');
 }
@@ -153,12 +155,12 @@ function adaptFlowWindow() {
   if (drawPeriods.length < 20 || frameSteps.length < 20 || paused || document.hidden) return;
   const drawn = median(drawPeriods);
   const framesPerDrawn = frameSteps.reduce((sum, s) => sum + s, 0) / frameSteps.length;
-  if (flowWindow === 2 && framesPerDrawn > 1.25 && performance.now() >= retryAt) {
-    periodWithTwo = drawn;
+  if (flowWindow === WIDE_WINDOW && framesPerDrawn > 1.25 && performance.now() >= retryAt) {
+    periodWide = drawn;
     setFlowWindow(1);
-  } else if (flowWindow === 1 && (framesPerDrawn < 1.1 || drawn > 2 * periodWithTwo)) {
+  } else if (flowWindow === 1 && (framesPerDrawn < 1.1 || drawn > 2 * periodWide)) {
     retryAt = performance.now() + 30000;
-    setFlowWindow(2);
+    setFlowWindow(WIDE_WINDOW);
   }
 }
 setInterval(adaptFlowWindow, 1000);
@@ -186,7 +188,7 @@ function show(frame, geometry) {
   $('triangles').textContent = h.triangles.toLocaleString('en');
   $('reconstruct').textContent = `${h.reconstruct_ms.toFixed(1)} + ${h.encode_ms.toFixed(1)} ms`;
   // With one frame in flight the next is asked for as soon as this one is decoded, so that its
-  // transfer and decoding overlap this one's drawing; with two, once this one is drawn. A hidden
+  // transfer and decoding overlap this one's drawing; with the wide window, once this one is drawn. A hidden
   // page draws nothing, and asks for nothing until it does.
   const askedEarly = flowWindow === 1 && !document.hidden;
   if (lastDrawnSequence !== null && h.sequence > lastDrawnSequence) {
@@ -235,7 +237,7 @@ function connect() {
   socket.binaryType = 'arraybuffer';
   socket.onopen = () => {
     $('status').textContent = 'connected';
-    flowWindow = 2;  // a new connection starts over (flow control above)
+    flowWindow = WIDE_WINDOW;  // a new connection starts over (flow control above)
     drawPeriods.length = frameSteps.length = 0;
     lastDrawnSequence = null;
     retryAt = 0;

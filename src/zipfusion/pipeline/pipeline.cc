@@ -96,19 +96,18 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
     }
   });
 
-  const bool live = options.source_policy == QueuePolicy::kDropOldest;
   long taken = 0;
   try {
     while (true) {
-      if (live && !reconstructed.wait_until_empty()) break;
+      if (options.take_when_sink_ready && !reconstructed.wait_until_empty()) break;
       std::optional<DecodedFrame> item = decoded.pop();
       if (!item) break;
       const long sequence = taken++;
+      if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
       if (options.wants_frame && !options.wants_frame()) {
         ++stats.unwanted;
         continue;
       }
-      if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
       PipelineFrame frame{.index = item->frames.index,
                           .sequence = sequence,
                           .capture_time_ms = item->frames.capture_time_ms,

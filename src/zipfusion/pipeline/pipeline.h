@@ -9,9 +9,9 @@
 //! Offline (a capture on disk) every frame is processed: a full queue makes its producer wait.
 //! Live (a device that will not wait) the source queue drops its oldest frame set instead, so the
 //! pipeline shows the newest frames and never falls behind; the drops are counted in the stats.
-//! Live, the reconstruction also takes its next frame set only once the sink has taken the
-//! previous mesh: a mesh waiting for a busy sink (say, compression) only ages, and the frame set
-//! taken after it would age with it, so the newest one is taken when the sink can soon have it.
+//! A stream (`take_when_sink_ready`) also takes its next frame set only once the sink has taken
+//! the previous mesh: a mesh waiting for a busy sink (compression) only ages, and the frame set
+//! taken after it would age with it.
 //!
 //! Thread safety: run_pipeline() owns its threads and joins them before it returns; the source is
 //! called from one thread, the sink from another, which also hands each mesh back to the
@@ -113,12 +113,17 @@ struct PipelineFrame {
 struct PipelineOptions {
   int queue_depth = 2;  // frame sets waiting between two stages
   QueuePolicy source_policy = QueuePolicy::kBlock;
-  //! Called on the reconstruction thread before each frame set (e.g. to swap in poses refined by
-  //! BackgroundRegistration and offer it the frame set); empty = nothing. Must not block.
+  //! Called on the reconstruction thread for each frame set taken, made or not (e.g. to swap in
+  //! poses refined by BackgroundRegistration and offer it the frame set); empty = nothing. Must
+  //! not block.
   std::function<void(const FrameSet&, FrameReconstructor&)> before_reconstruct;
-  //! Called on the reconstruction thread for each frame set it takes: false skips it, unmade
-  //! (a stream nobody can take a frame from now); empty = every frame set is wanted.
+  //! Called on the reconstruction thread for each frame set taken, after before_reconstruct:
+  //! false skips it, unmade (a stream nobody can be sent a frame now); true commits its mesh to
+  //! the sink. Empty = every frame set is wanted. Must not block.
   std::function<bool()> wants_frame;
+  //! Take the next frame set only once the sink has taken the previous mesh (a live stream:
+  //! latency before throughput; a writer keeps the queue's slack for its stalls).
+  bool take_when_sink_ready = false;
 };
 
 struct PipelineStats {

@@ -25,6 +25,17 @@ TEST(BoundedQueue, BlockingQueueLosesNothingAndKeepsOrder) {
   EXPECT_EQ(queue.dropped(), 0);
 }
 
+TEST(BoundedQueue, WaitUntilEmptyReturnsOnceDrainedAndFalseOnceClosed) {
+  BoundedQueue<int> queue(2, QueuePolicy::kBlock);
+  queue.push(1);
+  std::jthread consumer([&] { EXPECT_EQ(queue.pop(), 1); });
+  EXPECT_TRUE(queue.wait_until_empty());
+  consumer.join();
+  std::jthread closer([&] { queue.close(); });
+  queue.push(2);  // not empty: only the close ends the wait
+  EXPECT_FALSE(queue.wait_until_empty());
+}
+
 TEST(BoundedQueue, LiveQueueDropsTheOldest) {
   BoundedQueue<int> queue(3, QueuePolicy::kDropOldest);
   for (int i = 0; i < 10; ++i) EXPECT_TRUE(queue.push(i));  // never waits
@@ -119,7 +130,7 @@ TEST_F(PipelineTest, LiveReconstructionTakesAFrameSetOnlyWhenTheSinkHasRoom) {
   // taking a frame set and the sink starting on its mesh, at most one sink call may end.
   std::atomic<int> sink_calls_done = 0;
   std::vector<int> done_when_taken(200, -1);
-  PipelineOptions options{.queue_depth = 1, .source_policy = QueuePolicy::kDropOldest};
+  PipelineOptions options{.queue_depth = 1, .source_policy = QueuePolicy::kDropOldest, .take_when_sink_ready = true};
   options.before_reconstruct = [&](const FrameSet& frames, FrameReconstructor&) { done_when_taken[frames.index] = sink_calls_done; };
   int most_calls_waited = 0;
   int sunk = 0;
@@ -142,6 +153,8 @@ TEST_F(PipelineTest, LiveReconstructionTakesAFrameSetOnlyWhenTheSinkHasRoom) {
 
 TEST_F(PipelineTest, UnwantedFrameSetsAreNotMadeButKeepTheirPlaceInTheSequence) {
   PipelineOptions options;
+  int offered = 0;  // background registration sees every frame set, made or not
+  options.before_reconstruct = [&](const FrameSet&, FrameReconstructor&) { ++offered; };
   options.wants_frame = [n = 0]() mutable { return n++ % 3 == 0; };  // a sink that wants every third
   std::vector<long> sequences;
   const PipelineStats stats = run_pipeline(empty_frames(30, 3), reconstructor, [&](PipelineFrame& frame) {
@@ -150,6 +163,7 @@ TEST_F(PipelineTest, UnwantedFrameSetsAreNotMadeButKeepTheirPlaceInTheSequence) 
   }, options);
   EXPECT_EQ(stats.frames, 10);
   EXPECT_EQ(stats.unwanted, 20);
+  EXPECT_EQ(offered, 30);
   ASSERT_EQ(sequences.size(), 10u);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(sequences[i], 3 * i);
 }

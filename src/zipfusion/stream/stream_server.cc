@@ -98,6 +98,12 @@ constexpr int kMaxClients = 64;
 constexpr int kMaxWaitingReplies = 8;
 constexpr int kUnlimitedRoom = 1 << 20;  // a client without flow control takes every frame
 
+void decrement_if_positive(std::atomic<int>& count) {
+  int value = count;
+  while (value > 0 && !count.compare_exchange_weak(value, value - 1)) {
+  }
+}
+
 struct StreamServer::Impl {
   StreamServerOptions options;
   int port = 0;
@@ -255,6 +261,7 @@ struct Session : std::enable_shared_from_this<Session> {
     if (closed) return;
     ++server.closed_bad_message;
     closed = true;
+    server.update_room();  // the close handshake may take a while: no frames are made for it
     ws.async_close(websocket::close_reason(websocket::close_code::policy_error, why), [self = shared_from_this()](beast::error_code) { self->finish(); });
   }
 
@@ -481,9 +488,7 @@ void StreamServer::broadcast(std::string message) {
     // enqueue may close a session (refuse), which leaves the set only in a later handler.
     for (const auto& session : impl->sessions) session->enqueue(shared, true);
     // The clients' room now counts this frame: its reservation, if it had one, is spent.
-    int reserved = impl->frames_reserved;
-    while (reserved > 0 && !impl->frames_reserved.compare_exchange_weak(reserved, reserved - 1)) {
-    }
+    decrement_if_positive(impl->frames_reserved);
   });
 }
 

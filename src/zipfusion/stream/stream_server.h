@@ -66,10 +66,12 @@ class StreamServer {
   void broadcast(std::string message);
 
   //! Whether some client would be sent one more frame at once (connected, not paused, its flow
-  //! window not full), counting the frames reserved before and not yet broadcast; if so, reserves
-  //! a place for it, which the next broadcast() uses. A stream makes only the frames reserved, so
-  //! a viewer slower than the stream gets a fresh frame when it is ready, not an old one made
-  //! while it was busy, and nobody watching costs nothing.
+  //! window not full), counting the frames reserved before and not yet broadcast (against the
+  //! largest room of any one client); if so, reserves a place for it. Every true must be followed
+  //! by exactly one broadcast(), which spends it (a broadcast without one spends another's). A
+  //! stream makes only the frames reserved: a viewer slower than the stream, alone, is sent a
+  //! frame begun after it asked rather than one that aged while it was busy, and nobody watching
+  //! costs nothing.
   bool reserve_frame();
 
   StreamServerStats stats() const;
