@@ -86,8 +86,11 @@ struct ZipperScratch {
   // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
   // coarsest level, and the reverse.
   std::vector<std::pair<OverlapMask, OverlapMask>> masks;
-  std::vector<int> seam_slot;                // assembly: per output vertex, its index among seam vertices or -1
-  std::vector<std::vector<int>> outgoing;    // assembly: per seam vertex, far ends of its directed edges
+  std::vector<int> seam_slot;                // assembly: per output vertex, its slot (index among seam vertices) or -1
+  std::vector<PixelVertex> seam_vertices;    // assembly: per slot, its pixel
+  std::vector<int> slot_vertex;              // assembly: per slot, its output vertex
+  std::vector<int> local_slot;               // assembly: per seam vertex of each seam in turn, its slot
+  std::vector<std::vector<int>> outgoing;    // assembly: per slot, the slots its directed edges end at
 };
 
 //! `reuse`: a mesh whose buffers the result's mesh is built in (its contents are dropped).
