@@ -70,8 +70,8 @@ class StreamServer {
   //! largest room of any one client); if so, reserves a place for it. Every true must be followed
   //! by exactly one broadcast(), which spends it (a broadcast without one spends another's). A
   //! stream makes only the frames reserved: a viewer slower than the stream, alone, is sent a
-  //! frame begun after it asked rather than one that aged while it was busy, and nobody watching
-  //! costs nothing.
+  //! frame begun after it asked rather than one that aged while it was busy, and with nobody
+  //! watching no frame is made.
   bool reserve_frame();
 
   StreamServerStats stats() const;
