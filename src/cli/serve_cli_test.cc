@@ -1,7 +1,19 @@
 // zipfusion serve from the command line: it streams a capture at its frame rate for the time
 // asked, and bad options give one line naming the option and a non-zero exit.
 
+#include <utility>  // before Asio: Boost 1.74's awaitable.hpp uses std::exchange without it
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <regex>
+#include <sstream>
+#include <thread>
 
 #include "cli/cli_test_util.h"
 
@@ -33,6 +45,72 @@ TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   ASSERT_EQ(once.exit_code, 0) << once.err;
   ASSERT_TRUE(std::regex_search(once.out, served, served_line)) << once.out;
   EXPECT_EQ(std::stoi(served[1]) + std::stoi(served[2]) + std::stoi(served[3]), 6) << once.out;
+}
+
+// A viewer slower than the stream (it acknowledges each frame 150 ms after it arrives, with one
+// frame in flight) gets frames made for it: in order, with the frame sets made while it was busy
+// skipped unmade, as the summary counts.
+TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
+  namespace net = boost::asio;
+  namespace websocket = boost::beast::websocket;
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 6 --cameras 2").exit_code, 0);
+  const auto out = dir_ / "serve.out";
+  const std::string command = std::string(ZF_BINARY) + " serve " + capture + " --loop --seconds 5 --port 0 > " + out.string() + " 2>&1 < /dev/null &";
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  auto serve_output = [&] {
+    std::ifstream in(out);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  std::smatch url;
+  std::string text;
+  for (int i = 0; i < 200 && !std::regex_search(text, url, std::regex("serving http://127\\.0\\.0\\.1:(\\d+)/")); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    text = serve_output();
+  }
+  ASSERT_FALSE(url.empty()) << text;
+  net::io_context io;
+  websocket::stream<net::ip::tcp::socket> ws(io);
+  ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(std::stoi(url[1]))});
+  ws.handshake("127.0.0.1", "/stream");
+  auto send = [&](const std::string& command_text) {
+    ws.text(true);
+    ws.write(net::buffer(command_text));
+  };
+  send(R"({"type":"flow","window":1})");
+  std::vector<long> sequences;
+  while (sequences.size() < 8) {
+    boost::beast::flat_buffer buffer;
+    ws.read(buffer);
+    if (!ws.got_binary()) continue;  // the stream's description
+    const std::string message = boost::beast::buffers_to_string(buffer.data());
+    ASSERT_EQ(message.compare(0, 4, "ZFM1"), 0);
+    std::uint32_t length = 0;
+    std::memcpy(&length, message.data() + 4, 4);
+    sequences.push_back(nlohmann::json::parse(message.substr(8, length)).at("sequence").get<long>());
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));  // drawing, slowly
+    send(R"({"type":"ack"})");
+  }
+  ws.next_layer().close();
+  long largest_step = 0;
+  for (size_t i = 1; i < sequences.size(); ++i) {
+    EXPECT_GT(sequences[i], sequences[i - 1]);
+    largest_step = std::max(largest_step, sequences[i] - sequences[i - 1]);
+  }
+  EXPECT_GE(largest_step, 2) << "every frame set was made, though the viewer had no room for most";
+  for (int i = 0; i < 200 && text.find("served ") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    text = serve_output();
+  }
+  std::smatch served;
+  ASSERT_TRUE(std::regex_search(text, served, std::regex("served (\\d+) frame sets \\((\\d+) dropped by the pipeline to keep up, (\\d+) not made"))) << text;
+  // One frame made per acknowledgement, one more after the last, and any made in the moment
+  // before the window was set: not the 150 frame sets of five seconds.
+  EXPECT_GE(std::stoi(served[1]), 8) << text;
+  EXPECT_LE(std::stoi(served[1]), 12) << text;
+  EXPECT_GT(std::stoi(served[3]), 100) << text;
 }
 
 // serve --live streams live cameras: here a fakenect dump replayed as a camera (as fast as it
