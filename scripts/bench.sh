@@ -67,7 +67,7 @@ done
 
 step "live stream: Draco frame size, 20 viewers (one stalled), latency to a client and to a browser"
 serve_log="$OUT/serve.log"
-"$ZF" serve "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --loop --port 0 --seconds 75 > "$serve_log" 2>&1 &
+"$ZF" serve "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --loop --port 0 --seconds 90 > "$serve_log" 2>&1 &
 serve_pid=$!
 for _ in $(seq 100); do grep -q "serving http" "$serve_log" && break; sleep 0.2; done
 url=$(grep -o "serving http://[^ ]*" "$serve_log" | head -1 | cut -d" " -f2)
@@ -75,6 +75,8 @@ port=$(echo "$url" | sed -E 's|.*:([0-9]+)/.*|\1|')
 sleep 3  # the loop's first pass decodes the frames
 "$BUILD_DIR/zf_stream_clients" --port "$port" --clients 20 --stalled 1 --seconds 15 --json > "$OUT/stream_clients.json"
 "$BUILD_DIR/zf_stream_clients" --port "$port" --clients 1 --stalled 0 --seconds 10 --json > "$OUT/stream_one_client.json"
+# The viewer's wide flow window: frames are made only when a viewer has room, so one that keeps up needs it.
+"$BUILD_DIR/zf_stream_clients" --port "$port" --clients 1 --stalled 0 --window 3 --seconds 10 --json > "$OUT/stream_flow_client.json"
 node bench/stream_latency.mjs "$url" --seconds 20 > "$OUT/stream_browser.json"
 kill -INT "$serve_pid" 2> /dev/null || true
 wait "$serve_pid" 2> /dev/null || true

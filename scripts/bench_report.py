@@ -135,7 +135,7 @@ def main(folder):
                 f"{s['rss_mb_early']:.0f} MB after {s['early_frames']}, {s['rss_mb_at_end']:.0f} MB after {s['frames']}; "
                 f"peak {samba['peak_rss_mb']:.0f} MB.", ""]
 
-    clients, one, browser, draco = (load(folder, f"stream_{n}.json") for n in ("clients", "one_client", "browser", "draco"))
+    clients, one, flow, browser, draco = (load(folder, f"stream_{n}.json") for n in ("clients", "one_client", "flow_client", "browser", "draco"))
     if clients and draco:
         out += ["## The live stream (issue 8)", "",
                 "`zipfusion serve` on samba-4cam (true poses, level of detail 1, Draco 11-bit positions, "
@@ -151,7 +151,8 @@ def main(folder):
                 f"{draco['lod1']['max_error_mm']:.2f} / {draco['bound_mm']:.2f} |", "",
                 "| viewers | frames/s per reading viewer (min–max) | capture → arrival latency, ms (median / p95) | kB per frame |",
                 "|---|---|---|---|"]
-        for label, r in (("1", one), (f"{clients['clients']} ({clients['stalled']} stalled)", clients)):
+        for label, r in (("1", one), ("1, flow window of 3 (the viewer's), acknowledging each frame on arrival", flow),
+                         (f"{clients['clients']} ({clients['stalled']} stalled)", clients)):
             if r:
                 out.append(f"| {label} | {r['reader_fps_min']:.1f}–{r['reader_fps_max']:.1f} | {r['latency_ms_median']:.1f} / {r['latency_ms_p95']:.1f} | "
                            f"{r['frame_kb_mean']:.1f} |")
