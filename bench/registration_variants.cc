@@ -3,6 +3,7 @@
 // poses, and the worst camera's pose error relative to camera 0. The table in docs/design.md
 // ("Registration") comes from this program: build/zf_registration_variants [CAPTURE].
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -40,8 +41,10 @@ int main(int argc, char** argv) {
   const Capture capture = Capture::open(dir);
   const Rig& perturbed = capture.rig();
   const Rig& truth = *capture.ground_truth_rig();
-  std::vector<int> eight;
+  std::vector<int> eight, sixteen;
   for (int f = 0; f < 40 && f < capture.frame_count(); f += 5) eight.push_back(f);
+  const int span = std::min(40, capture.frame_count());
+  for (int k = 0; k < 16; ++k) sixteen.push_back(k * span / 16);  // as `zipfusion register` spreads them
   std::vector<int> all;
   for (int f = 0; f < capture.frame_count(); f += 2) all.push_back(f);
 
@@ -60,16 +63,23 @@ int main(int argc, char** argv) {
       {"final (disparity fit, σ weights, trim 3 %), 1 frame", [](O) {}, {0}},
       {"final, 4 frames", [](O) {}, four},
       {"final, 8 frames", [](O) {}, eight},
+      {"final, 16 frames (`zipfusion register` default)", [](O) {}, sixteen},
       {"final, 20 frames", [](O) {}, all},
-      {"final, 8 frames, without the floor", [](O o) { o.below_volume_m = 0; }, eight},
-      {"final, 8 frames, bilateral instead of disparity fit", [=](O o) { o.surface = bilateral; }, eight},
-      {"final, 8 frames, raw depth instead of disparity fit", [=](O o) { o.surface = raw; }, eight},
-      {"final, 8 frames, point-to-point", [](O o) { o.point_to_plane = false; }, eight},
-      {"final, 8 frames, no σ weights", [](O o) { o.noise_weights = false; }, eight},
-      {"final, 8 frames, no trim", [](O o) { o.trim_fraction = 0; }, eight},
-      {"final, 8 frames, down to full resolution (levels 3→0)", [](O o) { o.finest_level = 0; }, eight},
+      {"final, 16 frames, without the floor", [](O o) { o.below_volume_m = 0; }, sixteen},
+      {"final, 16 frames, the floor weighed in full in every frame", [](O o) { o.floor_counts_once = false; }, sixteen},
+      {"final, 16 frames, grazing pairs kept (no pair view angle limit, noise cosine not floored)", [](O o) { o.max_pair_view_angle_deg = 90; o.min_noise_cos = 0; }, sixteen},
+      {"final, 16 frames, noise cosine not floored", [](O o) { o.min_noise_cos = 0; }, sixteen},
+      {"final, 16 frames, none of the three (before 2026-12-02)", [](O o) { o.max_pair_view_angle_deg = 90; o.min_noise_cos = 0; o.floor_counts_once = false; }, sixteen},
+      {"final, 8 frames, none of the three (before 2026-12-02)", [](O o) { o.max_pair_view_angle_deg = 90; o.min_noise_cos = 0; o.floor_counts_once = false; }, eight},
+      {"final, 16 frames, bilateral instead of disparity fit", [=](O o) { o.surface = bilateral; }, sixteen},
+      {"final, 16 frames, raw depth instead of disparity fit", [=](O o) { o.surface = raw; }, sixteen},
+      {"final, 16 frames, point-to-point", [](O o) { o.point_to_plane = false; }, sixteen},
+      {"final, 16 frames, no σ weights", [](O o) { o.noise_weights = false; }, sixteen},
+      {"final, 16 frames, no trim", [](O o) { o.trim_fraction = 0; }, sixteen},
+      {"final, 16 frames, down to full resolution (levels 3→0)", [](O o) { o.finest_level = 0; }, sixteen},
       {"final, 1 frame, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, {0}},
-      {"final, 8 frames, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, eight},
+      {"final, 4 frames, levels 3→2 (the background thread's window)", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, four},
+      {"final, 16 frames, levels 3→2", [](O o) { o.coarsest_level = 3; o.finest_level = 2; }, sixteen},
   };
 
 

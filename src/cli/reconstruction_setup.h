@@ -24,7 +24,7 @@ struct ReconstructionArgs {
   bool no_volume_crop = false;
   ReconstructOptions options;
   BackgroundRegistrationOptions background;
-  int once_frames = 8;
+  int once_frames = 16;
 };
 
 //! --mode, --filter, --rig, --register*, --lod, the depth, filter and zipper thresholds, --threads.

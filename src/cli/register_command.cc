@@ -22,7 +22,7 @@ struct RegisterArgs {
   std::string out;
   std::string frames;
   std::string rig;
-  int max_frames = 8;
+  int max_frames = 16;
   RegistrationOptions options;
 };
 
@@ -100,6 +100,13 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--trim", o.trim_fraction, "Share of each pair's worst correspondences dropped")->capture_default_str();
   cmd->add_option("--below-volume", o.below_volume_m, "Depth this far below the capture volume (the floor) is used too, metres")
       ->capture_default_str();
+  cmd->add_option("--max-pair-view-angle", o.max_pair_view_angle_deg,
+                  "Correspondences whose mean normal either camera sees more obliquely are dropped, degrees")
+      ->capture_default_str();
+  cmd->add_option("--min-noise-cos", o.min_noise_cos, "The noise along a pair's normal is taken as seen at a cosine of at least this")
+      ->capture_default_str();
+  cmd->add_flag("!--floor-every-frame", o.floor_counts_once,
+                "Weigh the floor's correspondences in full in every frame (default: 1/F over F frames, as it does not move)");
   cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
   cmd->callback([args] { run_register(*args); });
 }

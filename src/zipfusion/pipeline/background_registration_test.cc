@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 
 #include "zipfusion/core/error.h"
@@ -39,6 +40,8 @@ TEST(BackgroundRegistration, RefinesSamba4camWhileFramesArrive) {
   registration.wait_idle();
   const auto poses = registration.latest_poses();
   EXPECT_GE(poses->version, 4);
+  const RelativePoseError worst = worst_relative_pose_error(poses->world_from_depth, world_from_depth_poses(truth));
+  std::printf("samba-4cam, background: worst camera %.2f mm / %.3f deg\n", worst.translation_m * 1000, worst.rotation_deg);
   for (const RelativePoseError& e : relative_pose_errors(poses->world_from_depth, world_from_depth_poses(truth))) {
     EXPECT_LT(e.translation_m * 1000, 2.0);
     EXPECT_LT(e.rotation_deg, 0.1);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <nanoflann.hpp>
 #include <numbers>
@@ -20,6 +21,8 @@ void RegistrationOptions::validate() const {
   if (!(end_distance_m > 0 && end_distance_m <= start_distance_m)) throw InvalidInput("registration.end_distance_m: must be in (0, start_distance_m]");
   if (!(max_normal_angle_deg > 0 && max_normal_angle_deg <= 180)) throw InvalidInput("registration.max_normal_angle_deg: must be in (0, 180]");
   if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 90)) throw InvalidInput("registration.max_view_angle_deg: must be in (0, 90]");
+  if (!(max_pair_view_angle_deg > 0 && max_pair_view_angle_deg <= 90)) throw InvalidInput("registration.max_pair_view_angle_deg: must be in (0, 90]");
+  if (!(min_noise_cos >= 0 && min_noise_cos <= 1)) throw InvalidInput("registration.min_noise_cos: must be in [0, 1]");
   if (fit_radius_px < 1 || fit_radius_px > 16) throw InvalidInput("registration.fit_radius_px: must be in [1, 16]");
   if (!(fit_gate_m > 0)) throw InvalidInput("registration.fit_gate_m: must be positive");
   if (normal_step_px < 1 || normal_step_px > 32) throw InvalidInput("registration.normal_step_px: must be in [1, 32]");
@@ -140,9 +143,15 @@ struct Poses {
   std::vector<Rigid3d> world_from_depth;
 };
 
+// What the residuals of a pair are weighed with besides their noise.
+struct PairWeighting {
+  float floor_top_z = -std::numeric_limits<float>::infinity();  // world z: both points below it are the floor
+  float floor_weight = 1;
+};
+
 // Mutual closest points between clouds a and b of one frame within max_distance, as residuals.
-void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& poses, float max_distance, const RegistrationOptions& o,
-                std::vector<Residual>& out) {
+void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& poses, float max_distance, const PairWeighting& weighting,
+                const RegistrationOptions& o, std::vector<Residual>& out) {
   out.clear();
   const Rigid3f b_from_world = poses.world_from_depth[b].inverse().cast<float>();
   const Rigid3f a_from_world = poses.world_from_depth[a].inverse().cast<float>();
@@ -150,6 +159,8 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
   const Vec3 centre_b = poses.world_from_depth[b].translation().cast<float>();
   const float max_d2 = max_distance * max_distance;
   const float cos_normal = static_cast<float>(std::cos(o.max_normal_angle_deg * std::numbers::pi / 180));
+  const float cos_pair_view = static_cast<float>(std::cos(o.max_pair_view_angle_deg * std::numbers::pi / 180));
+  const auto min_noise_cos = static_cast<float>(o.min_noise_cos);
   const int count = static_cast<int>(ca.points.size());
   const auto width_b = static_cast<float>(cb.intrinsics.width - 1), height_b = static_cast<float>(cb.intrinsics.height - 1);
   std::vector<int> match(count, -1);
@@ -180,11 +191,18 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     res.b = b;
     const Vec3 diff = pa - pb;
     const float sa = ca.sigma[i], sb = cb.sigma[j];
+    // Seen at a grazing angle by either camera, the pair is biased (the more oblique camera's
+    // surface lies farther, by 1.2 mm beyond 78°: docs/design.md), and its σ along the normal is
+    // so small that it would outweigh the frontal pairs.
+    const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
+    const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
+    if (std::min(std::abs(along_a), std::abs(along_b)) < cos_pair_view) continue;
     float variance = 0;
     if (o.point_to_plane) {
-      const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
-      const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
-      variance = sa * sa * along_a * along_a + sb * sb * along_b * along_b;
+      // Axial noise σ(z) seen along the normal is σ(z)·cos θ, but not less than at min_noise_cos:
+      // nearer grazing, the fit's errors across the ray are what is left.
+      const float cos_a = std::max(std::abs(along_a), min_noise_cos), cos_b = std::max(std::abs(along_b), min_noise_cos);
+      variance = sa * sa * cos_a * cos_a + sb * sb * cos_b * cos_b;
       res.r = Vec3(n.dot(diff), 0, 0);
       res.ja.setZero();
       res.jb.setZero();
@@ -205,6 +223,7 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     res.scaled = res.r.norm() / sigma;
     // Weights relative to 1 mm so the normal equations stay near unit scale.
     res.weight = o.noise_weights ? 1e-6f / (sigma * sigma) : 1.0f;
+    if (pa.z() < weighting.floor_top_z && pb.z() < weighting.floor_top_z) res.weight *= weighting.floor_weight;
     out.push_back(res);
   }
 }
@@ -247,7 +266,7 @@ struct Accumulated {
 
 // All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
 // normal equations H x = −g.
-Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const RegistrationOptions& o, Eigen::MatrixXd* h,
+Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const PairWeighting& weighting, const RegistrationOptions& o, Eigen::MatrixXd* h,
                        Eigen::VectorXd* g, bool trimmed) {
   const int cameras = static_cast<int>(poses.world_from_depth.size());
   Accumulated acc{std::vector<double>(cameras, 0), std::vector<int>(cameras, 0)};
@@ -259,7 +278,7 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
     for (int a = 0; a < cameras; ++a) {
       for (int b = a + 1; b < cameras; ++b) {
         if (frame[a]->empty() || frame[b]->empty()) continue;
-        match_pair(*frame[a], *frame[b], a, b, poses, max_distance, o, residuals);
+        match_pair(*frame[a], *frame[b], a, b, poses, max_distance, weighting, o, residuals);
         if (static_cast<int>(residuals.size()) < o.min_correspondences) continue;
         if (trimmed) trim(residuals, o.trim_fraction);
         const int rows = o.point_to_plane ? 1 : 3;
@@ -316,6 +335,11 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   const int cameras = static_cast<int>(rig.cameras.size());
   Poses poses;
   poses.world_from_depth = world_from_depth_poses(rig);
+  // The floor is the same surface in every frame set, with the same quantisation steps: all the
+  // frames together are one observation of it, while the moving body gives a new one each frame.
+  PairWeighting weighting;
+  if (rig.volume) weighting.floor_top_z = static_cast<float>(rig.volume->min.z());
+  if (options.floor_counts_once && !depth_m.empty()) weighting.floor_weight = 1.0f / static_cast<float>(depth_m.size());
   RegistrationResult result;
   const int levels = options.coarsest_level - options.finest_level + 1;
   const int total_iterations = levels * options.iterations_per_level;
@@ -323,7 +347,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
 
   // Residuals before, at the input poses: measured on the finest level with the end distance.
   Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
-  const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+  const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
   for (int c = 0; c < cameras; ++c) result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
 
   int schedule_step = 0;
@@ -335,7 +359,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       const float distance = static_cast<float>(options.start_distance_m * std::pow(shrink, schedule_step));
       Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
       Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);
-      accumulate(clouds, poses, distance, options, &h, &g, true);
+      accumulate(clouds, poses, distance, weighting, options, &h, &g, true);
       // Camera 0 is the gauge: solve for the others only. A tiny damping keeps cameras without
       // correspondences (or a degenerate overlap) where they are.
       const int n = 6 * (cameras - 1);
@@ -368,7 +392,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       }
     }
   }
-  const Accumulated after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), options, nullptr, nullptr, false);
+  const Accumulated after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
   for (int c = 0; c < cameras; ++c) {
     result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
     result.correspondences_after.push_back(after.count[c]);
