@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   std::vector<int> eight, sixteen;
   for (int f = 0; f < 40 && f < capture.frame_count(); f += 5) eight.push_back(f);
   const int span = std::min(40, capture.frame_count());
-  for (int k = 0; k < 16; ++k) sixteen.push_back(k * span / 16);  // as `zipfusion register` spreads them
+  for (int k = 0; k < 16; ++k) sixteen.push_back(k * span / 16);  // 16 spread over the first 40 frames (all of samba-4cam)
   std::vector<int> all;
   for (int f = 0; f < capture.frame_count(); f += 2) all.push_back(f);
 

@@ -66,6 +66,8 @@ TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {
       {"register " + capture + " --out " + out + " --frames 5:9", "--frames"},
       {"register " + capture + " --out " + out + " --max-frames 0", "--max-frames"},
       {"register " + capture + " --out " + out + " --trim 1.5", "trim_fraction"},
+      {"register " + capture + " --out " + out + " --min-noise-cos 2", "min_noise_cos"},
+      {"register " + capture + " --out " + out + " --max-pair-view-angle 0", "max_pair_view_angle_deg"},
       {"register " + capture + " --out " + out + " --rig " + (dir_ / "none.json").string(), "none.json"},
       {"register " + capture + " --out " + (dir_ / "no" / "such" / "dir.json").string(), "dir.json"},
   };

@@ -196,7 +196,7 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     // so small that it would outweigh the frontal pairs.
     const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
     const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
-    if (std::min(std::abs(along_a), std::abs(along_b)) < cos_pair_view) continue;
+    if (o.point_to_plane && std::min(std::abs(along_a), std::abs(along_b)) < cos_pair_view) continue;
     float variance = 0;
     if (o.point_to_plane) {
       // Axial noise σ(z) seen along the normal is σ(z)·cos θ, but not less than at min_noise_cos:
@@ -339,7 +339,11 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   // frames together are one observation of it, while the moving body gives a new one each frame.
   PairWeighting weighting;
   if (rig.volume) weighting.floor_top_z = static_cast<float>(rig.volume->min.z());
-  if (options.floor_counts_once && !depth_m.empty()) weighting.floor_weight = 1.0f / static_cast<float>(depth_m.size());
+  const auto has_depth = [](const std::vector<Image<float>>& frame) {
+    return std::any_of(frame.begin(), frame.end(), [](const Image<float>& d) { return !d.empty(); });
+  };
+  const auto frames_with_depth = std::count_if(depth_m.begin(), depth_m.end(), has_depth);
+  if (options.floor_counts_once && frames_with_depth > 0) weighting.floor_weight = 1.0f / static_cast<float>(frames_with_depth);
   RegistrationResult result;
   const int levels = options.coarsest_level - options.finest_level + 1;
   const int total_iterations = levels * options.iterations_per_level;
