@@ -183,7 +183,7 @@ std::vector<Rigid3d> chained_pairwise(const SyntheticRing& ring, const std::vect
 
 // Kinect noise, 6 cameras perturbed by 2° / 5 cm, 8 frames. The worst camera ends 1.4 mm / 0.03°
 // from the truth (3.2 mm / 0.07° before grazing pairs were dropped and the floor counted once,
-// docs/design.md "Registration"); without the floor 1.2 mm / 0.03°, where the global solve beats
+// docs/design.md "Registration"); without the floor 1.2 mm / 0.04°, where the global solve beats
 // pairwise ICP chained around the ring.
 class SixKinectRing : public ::testing::Test {
  protected:
