@@ -191,14 +191,14 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     res.b = b;
     const Vec3 diff = pa - pb;
     const float sa = ca.sigma[i], sb = cb.sigma[j];
-    // Seen at a grazing angle by either camera, the pair is biased (the more oblique camera's
-    // surface lies farther, by 1.2 mm beyond 78°: docs/design.md), and its σ along the normal is
-    // so small that it would outweigh the frontal pairs.
-    const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
-    const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
-    if (o.point_to_plane && std::min(std::abs(along_a), std::abs(along_b)) < cos_pair_view) continue;
     float variance = 0;
     if (o.point_to_plane) {
+      const Vec3 n = (ca.world_normals[i] + cb.world_normals[j]).normalized();
+      const float along_a = n.dot((pa - centre_a).normalized()), along_b = n.dot((pb - centre_b).normalized());
+      // Seen at a grazing angle by either camera, the pair is biased (the more oblique camera's
+      // surface lies farther, by 1.2 mm beyond 78°: docs/design.md), and its σ along the normal
+      // is so small that it would outweigh the frontal pairs.
+      if (std::min(std::abs(along_a), std::abs(along_b)) < cos_pair_view) continue;
       // Axial noise σ(z) seen along the normal is σ(z)·cos θ, but not less than at min_noise_cos:
       // nearer grazing, the fit's errors across the ray are what is left.
       const float cos_a = std::max(std::abs(along_a), min_noise_cos), cos_b = std::max(std::abs(along_b), min_noise_cos);
