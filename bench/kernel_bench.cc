@@ -67,12 +67,13 @@ BENCHMARK(BM_BorderDistance)->Unit(benchmark::kMillisecond);
 void BM_Smoothness(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh coarse;
-  downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
   const ZipperOptions options;
+  const float same_surface = 2 * static_cast<float>(options.sdc_max_depth_jump_m);  // the SDC threshold at level 1
+  downsample_mesh(f.meshes[0], 1, static_cast<float>(options.sdc_max_depth_jump_m), coarse);
   OwnershipScore smoothness;
   for (auto _ : state) {
     compute_smoothness(coarse, subsampled_intrinsics(f.rig.cameras[0].depth_intrinsics, 1), 1, (options.smoothness_window_px >> 1) | 1,
-                       static_cast<float>(options.smoothness_exponent), smoothness);
+                       static_cast<float>(options.smoothness_exponent), same_surface, smoothness);
   }
 }
 BENCHMARK(BM_Smoothness)->Unit(benchmark::kMillisecond);

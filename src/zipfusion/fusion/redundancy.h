@@ -20,6 +20,7 @@
 //! overlap is split where both see equally well, the meshes meet there with no gap, and one mesh
 //! is never removed where the other does not take over.
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -38,8 +39,8 @@ namespace zipfusion {
 //! - *border*: the distance from the border of the mesh (its silhouette, or a hole wider than the
 //!   closing), in full-resolution pixels: large where the camera sees the surface frontally and
 //!   near, small at grazing angles;
-//! - *smoothness*: (A_smooth / A)^exponent, where A is the area of the camera's triangles in a
-//!   window and A_smooth that of the same triangles on the locally averaged depth. Noise along a
+//! - *smoothness*: (A_smooth / A)^exponent (smoothness_score), where A is the area of the camera's
+//!   triangles in a window and A_smooth that of the same triangles on the locally averaged depth. Noise along a
 //!   camera's rays roughens its sheet and raises its area: it is strongest where the camera sees
 //!   the surface frontally, so unfiltered, the camera that sees a surface more obliquely measures
 //!   it more smoothly, up to the grazing angles and mixed pixels at its silhouette.
@@ -64,11 +65,25 @@ struct OwnershipScore {
 //! not make a border).
 void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out);
 
+//! Element function: the smoothness score of the area ratio A_smooth / A of a window:
+//! (ratio / 0.6)^exponent, a ratio above 1 counted as 1 (no sheet is smoother than its average).
+//! The reference 0.6 (a Kinect v1 sheet at 2–3 m) keeps exponents up to 128 in float range, the
+//! smoothest at 1.7^128 = 2·10^28; a ratio below 0.6·2^(−120/exponent) (0.25 for 96), whose power
+//! would no longer be a normal float, counts as that.
+inline float smoothness_score(float ratio, float exponent) {
+  constexpr float kReference = 0.6f;
+  const float lowest = kReference * std::exp2(-120.0f / exponent);
+  return std::pow(std::clamp(ratio, lowest, 1.0f) / kReference, exponent);
+}
+
 //! Fills `out` with the smoothness score of `mesh`, a view at `level` with intrinsics `k` (of that
-//! level): areas summed over windows of window_cells × window_cells cells (odd), the ratio raised
-//! to `exponent`, which sets how much a smoother surface outweighs the fall of the score to 0 over
-//! a mesh's last cell (docs/design.md).
-void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, OwnershipScore& out);
+//! level): A is the area of the triangles, A_smooth that of the same triangles on the depth
+//! averaged over 5×5 cells of the same surface (depths within `same_surface`, the level's SDC
+//! threshold), both summed over windows of window_cells × window_cells cells (odd), and the
+//! ratio scored by smoothness_score: `exponent` sets how much a smoother surface outweighs the
+//! fall of the score to 0 over a mesh's last cell (docs/design.md).
+void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, float same_surface,
+                        OwnershipScore& out);
 
 //! Element function: the summed area (square metres) of the triangles `bits` of a cell whose
 //! corners lie at depths z00 (top left), z10 (top right), z01 (bottom left) and z11 on the rays

@@ -55,7 +55,7 @@ void ZipperOptions::validate() const {
   if (!(clipping_distance_m > 0 && clipping_distance_m < 0.5)) throw InvalidInput("clipping-distance: must be in (0, 0.5) metres");
   if (hole_closing_px < 0 || hole_closing_px > 32) throw InvalidInput("hole-closing: must be in [0, 32] pixels");
   if (smoothness_window_px < 1 || smoothness_window_px > 256) throw InvalidInput("smoothness-window: must be in [1, 256] pixels");
-  if (!(smoothness_exponent > 0 && smoothness_exponent <= 64)) throw InvalidInput("smoothness-exponent: must be in (0, 64]");
+  if (!(smoothness_exponent > 0 && smoothness_exponent <= 128)) throw InvalidInput("smoothness-exponent: must be in (0, 128]");
   if (!(max_seam_edge_m > 0 && max_seam_edge_m < 0.5)) throw InvalidInput("max-seam-edge: must be in (0, 0.5) metres");
   if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("min-overlap: must be in [0, 1)");
 }
@@ -114,7 +114,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     if (options.ownership == Ownership::kSmoothness) {
       compute_smoothness(*views[c][score_level].mesh, views[c][score_level].intrinsics, score_level,
                          std::max(1, options.smoothness_window_px >> score_level) | 1, static_cast<float>(options.smoothness_exponent),
-                         s.ownership);
+                         static_cast<float>(options.sdc_max_depth_jump_m) * static_cast<float>(1 << score_level), s.ownership);
     } else {
       compute_border_distance(*views[c][score_level].mesh, score_level, std::max(1, options.hole_closing_px >> score_level), s.ownership);
     }

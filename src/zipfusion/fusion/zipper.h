@@ -32,8 +32,8 @@ struct ZipperOptions {
   double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
   Ownership ownership = Ownership::kAuto;
   int hole_closing_px = 3;              // border: holes up to 2·this+1 pixels wide do not count as borders
-  int smoothness_window_px = 26;        // smoothness: compared over windows this wide (pixels)
-  double smoothness_exponent = 12;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
+  int smoothness_window_px = 250;       // smoothness: compared over windows this wide (pixels)
+  double smoothness_exponent = 96;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level

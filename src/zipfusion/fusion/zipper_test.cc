@@ -174,9 +174,10 @@ TEST(Redundancy, BoundaryTrianglesAreThoseTheElementTestFinds) {
 
 TEST(Redundancy, SmoothnessScoreRanksTheSmootherSheetHigher) {
   // Three views of a plane 2.5 m away at one level of a 160×120 image: noise-free, with 5 mm and
-  // with 10 mm of noise along the rays. The smoothness score is 1 on the flat sheet (up to
-  // rounding), lower on the noisy ones and lowest on the noisiest; 0 off the mesh.
+  // with 10 mm of noise along the rays. The area ratio is 1 on the flat sheet (up to rounding),
+  // lower on the noisy ones and lowest on the noisiest; the score is 0 off the mesh.
   const Intrinsics k{.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  constexpr float kExponent = 12;
   std::mt19937 random(11);
   auto sheet = [&](float sigma) {
     std::normal_distribution<float> noise(0.0f, sigma);
@@ -187,15 +188,53 @@ TEST(Redundancy, SmoothnessScoreRanksTheSmootherSheetHigher) {
     DepthMesh mesh;
     triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
     OwnershipScore score;
-    compute_smoothness(mesh, k, 0, 13, 12.0f, score);
+    compute_smoothness(mesh, k, 0, 13, kExponent, 0.03f, score);
     return score;
   };
   const OwnershipScore flat = sheet(0), noisy = sheet(0.005f), noisier = sheet(0.01f);
   const float at_centre = ownership_score_at(flat, 80, 60);
-  EXPECT_NEAR(at_centre, 1.0f, 1e-3f);
-  EXPECT_LT(ownership_score_at(noisy, 80, 60), 0.9f * at_centre);
-  EXPECT_LT(ownership_score_at(noisier, 80, 60), 0.5f * ownership_score_at(noisy, 80, 60));
+  EXPECT_NEAR(at_centre / smoothness_score(1.0f, kExponent), 1.0f, 1e-3f);
+  EXPECT_LT(ownership_score_at(noisy, 80, 60), std::pow(0.9f, kExponent) * at_centre);
+  EXPECT_LT(ownership_score_at(noisier, 80, 60), std::pow(0.95f, kExponent) * ownership_score_at(noisy, 80, 60));
   EXPECT_EQ(ownership_score_at(flat, 10, 10), 0.0f);
+}
+
+TEST(Redundancy, SmoothnessIsMeasuredOnEachSurfaceApart) {
+  // A sheet 2.5 m away with a box 30 cm in front of its middle, both with 5 mm of noise along the
+  // rays: beside the box the sheet is as rough as anywhere else. Averaging the depth across the
+  // step would make steep slopes there, whose area hides the noise: the sheet would look
+  // smoother beside the box.
+  const Intrinsics k{.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  std::mt19937 random(5);
+  std::normal_distribution<float> noise(0.0f, 0.005f);
+  Image<float> depth(k.width, k.height, 0.0f);
+  for (int v = 10; v < 110; ++v) {
+    for (int u = 10; u < 150; ++u) depth(u, v) = ((u >= 60 && u < 100 && v >= 40 && v < 80) ? 2.2f : 2.5f) + noise(random);
+  }
+  DepthMesh mesh;
+  triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
+  OwnershipScore score;
+  compute_smoothness(mesh, k, 0, 13, 1.0f, 0.03f, score);
+  // Windows 6 cells wide each way, of depth averaged 2 cells each way: 8 cells from the box's
+  // edge, the window holds none of the box, and only the average over the step can reach it.
+  const float away = (score.cell(25, 25) + score.cell(134, 25) + score.cell(25, 94) + score.cell(134, 94)) / 4;
+  for (const auto& [u, v] : {std::pair{52, 60}, {107, 60}, {80, 32}, {80, 87}}) {
+    EXPECT_NEAR(score.cell(u, v) / away, 1.0f, 0.05f) << "beside the box at (" << u << ", " << v << ")";
+  }
+}
+
+TEST(Redundancy, SmoothnessScoreStaysInFloatRangeAndKeepsTheOrder) {
+  for (const float exponent : {1.0f, 12.0f, 96.0f, 128.0f}) {
+    float previous = 0;
+    for (float ratio = 0.2f; ratio <= 1.0f; ratio += 0.01f) {
+      const float score = smoothness_score(ratio, exponent);
+      EXPECT_TRUE(std::isnormal(score)) << ratio << "^" << exponent;
+      EXPECT_GE(score, previous) << ratio << "^" << exponent;
+      previous = score;
+    }
+    EXPECT_EQ(smoothness_score(1.5f, exponent), smoothness_score(1.0f, exponent));
+    EXPECT_GT(smoothness_score(0.6f, exponent), smoothness_score(0.55f, exponent));
+  }
 }
 
 TEST(Zipper, PairsAreScheduledWithoutSharingACamera) {
