@@ -1,6 +1,7 @@
 #include "zipfusion/depth/foreground.h"
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/row_kernel.h"
 
 namespace zipfusion {
 
@@ -13,7 +14,7 @@ namespace {
 
 // foreground_depth over one row, as a branch-free loop that vectorises (a Kinect row is 640
 // pixels and every one is tested).
-__attribute__((target_clones("avx2", "default"))) void foreground_row(const unsigned short* raw, int width, int v, const ForegroundParams& params,
+ZF_ROW_KERNEL void foreground_row(const unsigned short* raw, int width, int v, const ForegroundParams& params,
                                                                       float* out) {
   const Eigen::Vector3f row_ray = params.world_rays.row_ray(v);
   const Eigen::Vector3f origin = params.world_rays.origin, du = params.world_rays.ray_du;

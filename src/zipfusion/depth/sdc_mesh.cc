@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/row_kernel.h"
 
 namespace zipfusion {
 
@@ -10,7 +11,7 @@ void SdcOptions::validate() const {
   if (!(max_depth_jump_m > 0 && max_depth_jump_m < 1)) throw InvalidInput("max-depth-jump: must be in (0, 1) metres");
 }
 
-__attribute__((target_clones("avx2", "default"))) void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits) {
+ZF_ROW_KERNEL void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits) {
   const float* below = depth + width;
   for (int i = 0; i < count; ++i) {
     const float p = depth[i], r = depth[i + 1], b = below[i], d = below[i + 1];
@@ -22,7 +23,7 @@ __attribute__((target_clones("avx2", "default"))) void sdc_row(const float* dept
   }
 }
 
-__attribute__((target_clones("avx2", "default"))) int count_triangles(const std::uint8_t* bits, int count) {
+ZF_ROW_KERNEL int count_triangles(const std::uint8_t* bits, int count) {
   int triangles = 0;
   for (int i = 0; i < count; ++i) triangles += (bits[i] & kUpperTriangle) + ((bits[i] & kLowerTriangle) >> 1);
   return triangles;

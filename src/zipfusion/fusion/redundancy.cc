@@ -6,6 +6,8 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
+#include "zipfusion/core/row_kernel.h"
+
 namespace zipfusion {
 namespace {
 
@@ -77,7 +79,7 @@ namespace {
 // is_boundary_triangle for cells 1..count−1 of a row at once, as bits per cell: `row` is the
 // row's bit matrix from its first cell, `above` and `below` the rows next to it (cell 0 is left
 // to the caller, whose left neighbour may not exist). Branch-free, so it vectorises.
-__attribute__((target_clones("avx2", "default"))) void boundary_row(const std::uint8_t* row, const std::uint8_t* above,
+ZF_ROW_KERNEL void boundary_row(const std::uint8_t* row, const std::uint8_t* above,
                                                                     const std::uint8_t* below, int count, std::uint8_t* out) {
   for (int i = 1; i < count; ++i) {
     const unsigned cell = row[i];
@@ -197,7 +199,7 @@ namespace {
 // Adds to the sums and counts of `count` pixels (depths `centres`) their taps `taps` (the depths
 // at one offset) that lie on the same surface: with depth, within `same_surface` of the pixel's.
 // Branch-free over the pixels of a row, so it vectorises.
-__attribute__((target_clones("avx2", "default"))) void add_same_surface_taps(const float* centres, const float* taps, int count,
+ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps, int count,
                                                                              float same_surface, float* sums, float* counts) {
   for (int i = 0; i < count; ++i) {
     const float z = taps[i];

@@ -6,6 +6,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
+#include "zipfusion/core/row_kernel.h"
 #include "zipfusion/core/stopwatch.h"
 
 namespace zipfusion {
@@ -23,7 +24,7 @@ constexpr int kScoreLevel = 1;
 
 // pixel_used for the pixels u0..u1−1 of row v; the first column and row read no cell outside
 // the image.
-__attribute__((target_clones("avx2", "default"))) void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1,
+ZF_ROW_KERNEL void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1,
                                                                             std::uint8_t* used_row) {
   const std::uint8_t* row = triangles + v * width;
   const std::uint8_t* above = v > 0 ? row - width : nullptr;
@@ -40,7 +41,7 @@ __attribute__((target_clones("avx2", "default"))) void mark_used_pixels_row(cons
 }
 
 // The number of used pixels among `count`.
-__attribute__((target_clones("avx2", "default"))) int count_used_row(const std::uint8_t* used, int count) {
+ZF_ROW_KERNEL int count_used_row(const std::uint8_t* used, int count) {
   int n = 0;
   for (int i = 0; i < count; ++i) n += used[i];
   return n;

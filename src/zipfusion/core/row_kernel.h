@@ -1,0 +1,14 @@
+#pragma once
+//! \file
+//! ZF_ROW_KERNEL: marks a row kernel, a plain loop over the pixels of a row that the compiler
+//! vectorises. On x86-64 it is compiled three times, for AVX-512 (16 floats a vector), AVX2 (8) and
+//! the baseline SSE2 (4), and the best the CPU has is chosen when the process loads, so one binary
+//! runs everywhere and uses what it finds. AVX-512 could fuse a multiply and an add where the
+//! others cannot; the libraries are compiled with -ffp-contract=off, so every clone computes the
+//! same floats as the element functions.
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ZF_ROW_KERNEL __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define ZF_ROW_KERNEL
+#endif
