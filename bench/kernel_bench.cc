@@ -100,7 +100,7 @@ void BM_ZipperFourCameras(benchmark::State& state) {
     state.PauseTiming();
     meshes = input;  // zippering clears bits: start each iteration from the same meshes
     std::vector<ZipperCamera> cameras;
-    for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.colors[c], &f.rig.cameras[c]});
+    for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.frames.cameras[c].color, &f.rig.cameras[c]});
     state.ResumeTiming();
     ZipperResult result = zipper_meshes(cameras, options, scratch, std::move(reused));
     benchmark::DoNotOptimize(result.mesh.triangles.data());

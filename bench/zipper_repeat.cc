@@ -56,7 +56,7 @@ int main(int argc, char** argv) {
   for (int r = 0; r < repeat; ++r) {
     std::vector<DepthMesh> work = meshes;  // zippering clears bits
     std::vector<ZipperCamera> cameras;
-    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.colors[c], &samba.rig.cameras[c]});
+    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.frames.cameras[c].color, &samba.rig.cameras[c]});
     result = zipper_meshes(cameras, options, scratch, std::move(result.mesh));  // as the pipeline reuses its meshes
     redundancy_ms.push_back(result.stats.redundancy_ms);
     clipping_ms.push_back(result.stats.clipping_ms);

@@ -31,6 +31,34 @@ inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
   return {mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
 }
 
+//! The colour of a depth camera's pixels: each pixel's point goes into the colour camera and the
+//! colour image is sampled there.
+class ColorLookup {
+ public:
+  //! kNoColor for every pixel where `color` is null or empty or the camera has no colour camera.
+  ColorLookup(const CameraModel& camera, const ColorImage* color)
+      : rays_(camera.depth_intrinsics, camera.color_from_depth.cast<float>()),
+        color_k_(camera.has_color() ? &*camera.color_intrinsics : nullptr),
+        image_(color != nullptr && !color->empty() && camera.has_color() ? color : nullptr) {}
+
+  //! Whether there is a colour image to sample (otherwise every pixel is kNoColor).
+  bool has_image() const { return image_ != nullptr; }
+
+  //! Element function: the colour of depth pixel (u, v) at depth z (metres, > 0).
+  Rgb8 at(int u, int v, float z) const {
+    if (image_ == nullptr) return kNoColor;
+    const Eigen::Vector3f p_color = rays_.point(u, v, z);  // depth pixels straight into the colour camera's frame
+    if (p_color.z() <= 0) return kNoColor;
+    const Eigen::Vector2f pixel = color_k_->has_distortion ? project(*color_k_, p_color.cast<double>()).cast<float>() : project_pinhole(*color_k_, p_color);
+    return sample_bilinear(*image_, pixel.x(), pixel.y());
+  }
+
+ private:
+  PixelRays rays_;
+  const Intrinsics* color_k_;
+  const ColorImage* image_;
+};
+
 //! Colour of every pixel of `mesh` that has depth (kNoColor elsewhere, or everywhere when
 //! `color` is null or the camera has no colour). `out` is resized to the pixel count.
 void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const ColorImage* color, std::vector<Rgb8>& out);

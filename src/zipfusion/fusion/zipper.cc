@@ -8,6 +8,7 @@
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/core/row_kernel.h"
 #include "zipfusion/core/stopwatch.h"
+#include "zipfusion/depth/color_lookup.h"
 
 namespace zipfusion {
 namespace {
@@ -307,7 +308,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         if (!s.used[pixel]) continue;
         s.vertex_of_pixel[pixel] = vertex;
         mesh.positions[first + vertex] = depth_mesh.points[pixel];
-        mesh.colors[first + vertex] = cameras[c].colors ? (*cameras[c].colors)[pixel] : Rgb8{128, 128, 128};
         ++vertex;
       }
     }
@@ -391,6 +391,24 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     seam_local_slot += seam.vertices.size();
   }
   result.stats.assemble_ms = ms_since(t);
+
+  // Colours, of the vertices only: in the order the positions were written.
+  t = Clock::now();
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
+    const ZipperScratch::Camera& s = scratch.cameras[c];
+    const DepthMesh& depth_mesh = *cameras[c].mesh;
+    const ColorLookup lookup(*cameras[c].model, cameras[c].color);
+    Rgb8* out = mesh.colors.data() + vertex_offset[c];
+    const PixelBox box = depth_mesh.box();
+    for (int v = box.v0; v < box.v1; ++v) {
+      for (int u = box.u0; u < box.u1; ++u) {
+        const int pixel = v * depth_mesh.width + u;
+        if (s.used[pixel]) *out++ = lookup.at(u, v, depth_mesh.depth[pixel]);
+      }
+    }
+  }, options.num_threads);
+  result.stats.color_ms = ms_since(t);
   return result;
 }
 

@@ -44,10 +44,10 @@ struct ZipperOptions {
 };
 
 //! One camera's input: its full-resolution mesh (modified: removed triangles' bits are cleared),
-//! colours per pixel, and its model.
+//! its colour image, and its model.
 struct ZipperCamera {
   DepthMesh* mesh = nullptr;  // null: the camera has no depth in this frame set
-  const std::vector<Rgb8>* colors = nullptr;
+  const ColorImage* color = nullptr;  // null: the camera's vertices are grey
   const CameraModel* model = nullptr;
 };
 
@@ -57,6 +57,7 @@ struct ZipperStats {
   double redundancy_ms = 0;  // FRBR at every level, with propagation
   double clipping_ms = 0;    // seams: detection, Delaunay, filtering
   double assemble_ms = 0;    // one mesh with shared vertices
+  double color_ms = 0;       // the colours of the mesh's vertices (only those: most pixels' triangles are removed or clipped)
   int pairs = 0;
   int redundant_removed = 0;  // full-resolution triangles removed as redundant (incl. propagated)
   int seam_taken = 0;         // triangles replaced by seams

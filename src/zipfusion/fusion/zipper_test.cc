@@ -23,12 +23,13 @@ const Intrinsics kKinect{.width = 640, .height = 480, .fx = 580, .fy = 580, .cx 
 struct Scene {
   std::vector<CameraModel> models;
   std::vector<DepthMesh> meshes;
-  std::vector<std::vector<Rgb8>> colors;
+  std::vector<ColorImage> colors;
 
   void add_camera(const Rigid3d& world_from_depth, const TriangleMesh& surface) {
     CameraModel model;
     model.name = "cam" + std::to_string(models.size());
     model.depth_intrinsics = kKinect;
+    model.color_intrinsics = kKinect;  // a colour camera where the depth camera is, all one colour
     model.world_from_depth = world_from_depth;
     RenderBuffers buffers;
     buffers.reset(kKinect, false);
@@ -39,7 +40,7 @@ struct Scene {
     triangulate_sdc(depth, kKinect, world_from_depth.cast<float>(), {}, mesh);
     models.push_back(model);
     meshes.push_back(std::move(mesh));
-    colors.emplace_back(kKinect.width * kKinect.height, Rgb8{static_cast<unsigned char>(60 * models.size()), 100, 100});
+    colors.emplace_back(kKinect.width, kKinect.height, Rgb8{static_cast<unsigned char>(60 * models.size()), 100, 100});
   }
 
   ZipperResult zipper(const ZipperOptions& options = {}) {
@@ -120,6 +121,13 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
   EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.03);
   EXPECT_EQ(components(mesh, 50), 1);
   EXPECT_EQ(non_manifold_edges(mesh), 0);
+  // Colours carry over: each camera's vertices have its colour, and both cameras keep some.
+  ASSERT_EQ(mesh.colors.size(), mesh.positions.size());
+  std::map<int, int> vertices_of_color;
+  for (const Rgb8& c : mesh.colors) vertices_of_color[c.r]++;
+  EXPECT_EQ(vertices_of_color.size(), 2u);
+  EXPECT_GT(vertices_of_color[scene.colors[0].data[0].r], 1000);
+  EXPECT_GT(vertices_of_color[scene.colors[1].data[0].r], 1000);
 }
 
 TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {

@@ -123,16 +123,17 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     const Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;
     triangulate_sdc(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), options_.sdc, s.mesh);
   });
-  stage(result.times.color_ms, [&](int c, CameraState& s) {
-    const CameraFrame& frame = frames.cameras[c];
-    lookup_colors(s.mesh, rig_.cameras[c], frame.has_color ? &frame.color : nullptr, s.colors);
-  });
+  auto color_of = [&](int c) { return frames.cameras[c].has_color ? &frames.cameras[c].color : nullptr; };
+  if (options_.mode == ReconstructMode::kSeparate) {
+    stage(result.times.color_ms, [&](int c, CameraState& s) { lookup_colors(s.mesh, rig_.cameras[c], color_of(c), s.colors); });
+  }
 
   for (int c = 0; c < camera_count; ++c) result.cameras_used += active[c];
   if (options_.mode == ReconstructMode::kZipper) {
+    // The zipper colours only the vertices it keeps.
     std::vector<ZipperCamera> inputs(camera_count);
     for (int c = 0; c < camera_count; ++c) {
-      if (active[c]) inputs[c] = {&cameras_[c].mesh, &cameras_[c].colors, &rig_.cameras[c]};
+      if (active[c]) inputs[c] = {&cameras_[c].mesh, color_of(c), &rig_.cameras[c]};
     }
     ZipperOptions zipper = options_.zipper;
     zipper.ownership = options_.ownership();
@@ -145,6 +146,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     result.times.redundancy_ms = zipped.stats.redundancy_ms;
     result.times.clipping_ms = zipped.stats.clipping_ms;
     result.times.assemble_ms = zipped.stats.assemble_ms;
+    result.times.color_ms = zipped.stats.color_ms;
   } else {
     const Clock::time_point assemble_start = Clock::now();
     for (int c = 0; c < camera_count; ++c) {
