@@ -260,12 +260,13 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, i
   const cv::Size window(window_cells, window_cells);
   cv::boxFilter(area, area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
   cv::boxFilter(smooth_area, smooth_area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  const float lowest_ratio = smoothness_lowest_ratio(exponent);
   for (int y = 0; y < box.height; ++y) {
     const float* a = area.ptr<float>(y);
     const float* sa = smooth_area.ptr<float>(y);
     const int base = (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) {
-      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = smoothness_score(sa[x] / a[x], exponent);
+      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = smoothness_score(sa[x] / a[x], exponent, lowest_ratio);
     }
   }
 }

@@ -70,11 +70,12 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
 //! The reference 0.6 (a Kinect v1 sheet at 2–3 m) keeps exponents up to 128 in float range, the
 //! smoothest at 1.7^128 = 2·10^28; a ratio below 0.6·2^(−120/exponent) (0.25 for 96), whose power
 //! would no longer be a normal float, counts as that.
-inline float smoothness_score(float ratio, float exponent) {
-  constexpr float kReference = 0.6f;
-  const float lowest = kReference * std::exp2(-120.0f / exponent);
-  return std::pow(std::clamp(ratio, lowest, 1.0f) / kReference, exponent);
+inline constexpr float kSmoothnessReference = 0.6f;
+inline float smoothness_lowest_ratio(float exponent) { return kSmoothnessReference * std::exp2(-120.0f / exponent); }
+inline float smoothness_score(float ratio, float exponent, float lowest_ratio) {
+  return std::pow(std::clamp(ratio, lowest_ratio, 1.0f) / kSmoothnessReference, exponent);
 }
+inline float smoothness_score(float ratio, float exponent) { return smoothness_score(ratio, exponent, smoothness_lowest_ratio(exponent)); }
 
 //! Fills `out` with the smoothness score of `mesh`, a view at `level` with intrinsics `k` (of that
 //! level): A is the area of the triangles, A_smooth that of the same triangles on the depth
