@@ -68,13 +68,13 @@ void BM_Smoothness(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh coarse;
   const ZipperOptions options;
-  const float same_surface = 2 * static_cast<float>(options.sdc_max_depth_jump_m);  // the SDC threshold at level 1
   downsample_mesh(f.meshes[0], 1, static_cast<float>(options.sdc_max_depth_jump_m), coarse);
+  // As zippering computes it, on level 1.
+  const SmoothnessOptions smoothness_options{.window_cells = (options.smoothness_window_px >> 1) | 1,
+                                             .exponent = static_cast<float>(options.smoothness_exponent),
+                                             .same_surface_m = 2 * static_cast<float>(options.sdc_max_depth_jump_m)};
   OwnershipScore smoothness;
-  for (auto _ : state) {
-    compute_smoothness(coarse, subsampled_intrinsics(f.rig.cameras[0].depth_intrinsics, 1), 1, (options.smoothness_window_px >> 1) | 1,
-                       static_cast<float>(options.smoothness_exponent), same_surface, smoothness);
-  }
+  for (auto _ : state) compute_smoothness(coarse, subsampled_intrinsics(f.rig.cameras[0].depth_intrinsics, 1), 1, smoothness_options, smoothness);
 }
 BENCHMARK(BM_Smoothness)->Unit(benchmark::kMillisecond);
 

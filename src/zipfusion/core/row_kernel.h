@@ -4,8 +4,8 @@
 //! vectorises. On x86-64 it is compiled three times, for AVX-512 (16 floats a vector), AVX2 (8) and
 //! the baseline SSE2 (4), and the best the CPU has is chosen when the process loads, so one binary
 //! runs everywhere and uses what it finds. AVX-512 could fuse a multiply and an add where the
-//! others cannot; the libraries are compiled with -ffp-contract=off, so every clone computes the
-//! same floats as the element functions.
+//! others cannot; the libraries, where the row kernels are, are compiled with -ffp-contract=off,
+//! so each clone computes the same floats, and the same meshes come out on every CPU.
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define ZF_ROW_KERNEL __attribute__((target_clones("avx512f", "avx2", "default")))

@@ -14,8 +14,8 @@ namespace {
 // Adds to the sums of `count` consecutive pixels their taps at one offset (`taps`, one per pixel,
 // all with the spatial weight `spatial`). Pixels innermost, branch-free and contiguous: the loop
 // vectorises (ZF_ROW_KERNEL: 16 lanes wide where the CPU has AVX-512, 8 with AVX2, 4 otherwise).
-ZF_ROW_KERNEL void accumulate_taps(const float* centres, const float* taps, int count, float spatial, float inv_two_range_sigma2, float* weight_sums,
-                     float* value_sums) {
+ZF_ROW_KERNEL void accumulate_taps(const float* centres, const float* taps, int count, float spatial, float inv_two_range_sigma2,
+                                   float* weight_sums, float* value_sums) {
   for (int i = 0; i < count; ++i) {
     const float w = bilateral_weight(centres[i], taps[i], spatial, inv_two_range_sigma2);
     weight_sums[i] += w;
@@ -27,10 +27,9 @@ ZF_ROW_KERNEL void accumulate_taps(const float* centres, const float* taps, int 
 // either (spatial and range terms are symmetric), so each pair is weighed once and added to both
 // sums. `p` and `q` are `count` pixels of two different rows (q's already shifted by the offset);
 // their sums must not overlap.
-ZF_ROW_KERNEL void accumulate_pairs(const float* __restrict p, const float* __restrict q, int count,
-                                                                        float spatial, float inv_two_range_sigma2,
-                                                                        float* __restrict p_weights, float* __restrict p_values,
-                                                                        float* __restrict q_weights, float* __restrict q_values) {
+ZF_ROW_KERNEL void accumulate_pairs(const float* __restrict p, const float* __restrict q, int count, float spatial, float inv_two_range_sigma2,
+                                    float* __restrict p_weights, float* __restrict p_values, float* __restrict q_weights,
+                                    float* __restrict q_values) {
   for (int i = 0; i < count; ++i) {
     // bilateral_weight masks a q without depth; a p without depth must not reach q's sums either.
     const float w = static_cast<float>(p[i] > 0.0f) * bilateral_weight(p[i], q[i], spatial, inv_two_range_sigma2);

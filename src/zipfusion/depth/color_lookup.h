@@ -32,7 +32,8 @@ inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
 }
 
 //! The colour of a depth camera's pixels: each pixel's point goes into the colour camera and the
-//! colour image is sampled there.
+//! colour image is sampled there. Immutable once made: at() may be called from any number of
+//! threads. Holds pointers: the camera model and the colour image must outlive it.
 class ColorLookup {
  public:
   //! kNoColor for every pixel where `color` is null or empty or the camera has no colour camera.
@@ -49,7 +50,8 @@ class ColorLookup {
     if (image_ == nullptr) return kNoColor;
     const Eigen::Vector3f p_color = rays_.point(u, v, z);  // depth pixels straight into the colour camera's frame
     if (p_color.z() <= 0) return kNoColor;
-    const Eigen::Vector2f pixel = color_k_->has_distortion ? project(*color_k_, p_color.cast<double>()).cast<float>() : project_pinhole(*color_k_, p_color);
+    const Eigen::Vector2f pixel =
+        color_k_->has_distortion ? project(*color_k_, p_color.cast<double>()).cast<float>() : project_pinhole(*color_k_, p_color);
     return sample_bilinear(*image_, pixel.x(), pixel.y());
   }
 

@@ -14,8 +14,7 @@ namespace {
 
 // foreground_depth over one row, as a branch-free loop that vectorises (a Kinect row is 640
 // pixels and every one is tested).
-ZF_ROW_KERNEL void foreground_row(const unsigned short* raw, int width, int v, const ForegroundParams& params,
-                                                                      float* out) {
+ZF_ROW_KERNEL void foreground_row(const unsigned short* raw, int width, int v, const ForegroundParams& params, float* out) {
   const Eigen::Vector3f row_ray = params.world_rays.row_ray(v);
   const Eigen::Vector3f origin = params.world_rays.origin, du = params.world_rays.ray_du;
   const float lo_x = params.box_min.x(), lo_y = params.box_min.y(), lo_z = params.box_min.z();

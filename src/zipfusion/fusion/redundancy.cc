@@ -79,8 +79,7 @@ namespace {
 // is_boundary_triangle for cells 1..count−1 of a row at once, as bits per cell: `row` is the
 // row's bit matrix from its first cell, `above` and `below` the rows next to it (cell 0 is left
 // to the caller, whose left neighbour may not exist). Branch-free, so it vectorises.
-ZF_ROW_KERNEL void boundary_row(const std::uint8_t* row, const std::uint8_t* above,
-                                                                    const std::uint8_t* below, int count, std::uint8_t* out) {
+ZF_ROW_KERNEL void boundary_row(const std::uint8_t* row, const std::uint8_t* above, const std::uint8_t* below, int count, std::uint8_t* out) {
   for (int i = 1; i < count; ++i) {
     const unsigned cell = row[i];
     // The upper triangle's neighbours are lower triangles (bit 2), the lower's upper ones (bit 1).
@@ -199,11 +198,11 @@ namespace {
 // Adds to the sums and counts of `count` pixels (depths `centres`) their taps `taps` (the depths
 // at one offset) that lie on the same surface: with depth, within `same_surface` of the pixel's.
 // Branch-free over the pixels of a row, so it vectorises.
-ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps, int count,
-                                                                             float same_surface, float* sums, float* counts) {
+ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps, int count, float same_surface_m, float* sums,
+                                         float* counts) {
   for (int i = 0; i < count; ++i) {
     const float z = taps[i];
-    const float same = static_cast<float>(z > 0.0f) * static_cast<float>(std::abs(z - centres[i]) < same_surface);
+    const float same = static_cast<float>(z > 0.0f) * static_cast<float>(std::abs(z - centres[i]) < same_surface_m);
     sums[i] += same * z;
     counts[i] += same;
   }
@@ -211,8 +210,7 @@ ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps
 
 }  // namespace
 
-void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, float same_surface,
-                        OwnershipScore& out) {
+void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out) {
   constexpr int kSmoothRadius = 2;  // the averaged depth: 5×5 cells
   // Cells outside the depth box have no triangles and add no area to a window: the box filter's
   // zero border stands for them, so the box needs no room for the window (at 250 pixels that
@@ -221,21 +219,23 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, i
   if (box.empty()) return;
   // The box's depth with kSmoothRadius cells of no depth all round, so the taps need no bounds tests.
   const int padded_width = box.width + 2 * kSmoothRadius;
-  std::vector<float> padded(static_cast<size_t>(padded_width) * (box.height + 2 * kSmoothRadius), 0.0f);
+  std::vector<float>& padded = out.padded_depth;
+  padded.assign(static_cast<size_t>(padded_width) * (box.height + 2 * kSmoothRadius), 0.0f);
   auto padded_row = [&](int y) { return padded.data() + static_cast<size_t>(y + kSmoothRadius) * padded_width + kSmoothRadius; };
   for (int y = 0; y < box.height; ++y) std::copy_n(mesh.depth.data() + (box.y + y) * mesh.width + box.x, box.width, padded_row(y));
   // The depth averaged over the 5×5 cells on the same surface (the SDC test's threshold): a plain
   // average mixes the depths of an arm and the torso behind it into steep slopes whose area says
   // nothing about noise (on noise-free synthetic depth it put the ratio anywhere in 0.8–2).
   cv::Mat smooth_depth(box.height, box.width, CV_32F, 0.0f);
-  std::vector<float> sums(box.width), counts(box.width);
+  std::vector<float>& sums = out.row_sums;
+  std::vector<float>& counts = out.row_counts;
   for (int y = 0; y < box.height; ++y) {
-    std::fill(sums.begin(), sums.end(), 0.0f);
-    std::fill(counts.begin(), counts.end(), 0.0f);
+    sums.assign(box.width, 0.0f);
+    counts.assign(box.width, 0.0f);
     const float* centre = padded_row(y);
     for (int dy = -kSmoothRadius; dy <= kSmoothRadius; ++dy) {
       for (int dx = -kSmoothRadius; dx <= kSmoothRadius; ++dx) {
-        add_same_surface_taps(centre, padded_row(y + dy) + dx, box.width, same_surface, sums.data(), counts.data());
+        add_same_surface_taps(centre, padded_row(y + dy) + dx, box.width, options.same_surface_m, sums.data(), counts.data());
       }
     }
     float* smooth = smooth_depth.ptr<float>(y);
@@ -257,16 +257,16 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, i
       sa[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], s0[x], s0[x + 1], s1[x], s1[x + 1]);
     }
   }
-  const cv::Size window(window_cells, window_cells);
+  const cv::Size window(options.window_cells, options.window_cells);
   cv::boxFilter(area, area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
   cv::boxFilter(smooth_area, smooth_area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
-  const float lowest_ratio = smoothness_lowest_ratio(exponent);
+  const float lowest_ratio = smoothness_lowest_ratio(options.exponent);
   for (int y = 0; y < box.height; ++y) {
     const float* a = area.ptr<float>(y);
     const float* sa = smooth_area.ptr<float>(y);
     const int base = (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) {
-      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = smoothness_score(sa[x] / a[x], exponent, lowest_ratio);
+      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = smoothness_score(sa[x] / a[x], options.exponent, lowest_ratio);
     }
   }
 }

@@ -58,6 +58,9 @@ struct OwnershipScore {
   //! Cell (u, v), u in [−1, width], v in [−1, height] (the border reads 0).
   float& cell(int u, int v) { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
   const float& cell(int u, int v) const { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
+
+  // Not part of the score: buffers compute_smoothness reuses from one frame to the next.
+  std::vector<float> padded_depth, row_sums, row_counts;
 };
 
 //! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its
@@ -68,8 +71,9 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
 //! Element function: the smoothness score of the area ratio A_smooth / A of a window:
 //! (ratio / 0.6)^exponent, a ratio above 1 counted as 1 (no sheet is smoother than its average).
 //! The reference 0.6 (a Kinect v1 sheet at 2–3 m) keeps exponents up to 128 in float range, the
-//! smoothest at 1.7^128 = 2·10^28; a ratio below 0.6·2^(−120/exponent) (0.25 for 96), whose power
-//! would no longer be a normal float, counts as that.
+//! smoothest at (1/0.6)^128 ≈ 2.5·10^28; a ratio below lowest_ratio = 0.6·2^(−120/exponent) (0.25
+//! for 96), whose power would no longer be a normal float, counts as that, so two cameras both
+//! that rough tie (and the lower camera index keeps the surface).
 inline constexpr float kSmoothnessReference = 0.6f;
 inline float smoothness_lowest_ratio(float exponent) { return kSmoothnessReference * std::exp2(-120.0f / exponent); }
 inline float smoothness_score(float ratio, float exponent, float lowest_ratio) {
@@ -77,14 +81,17 @@ inline float smoothness_score(float ratio, float exponent, float lowest_ratio) {
 }
 inline float smoothness_score(float ratio, float exponent) { return smoothness_score(ratio, exponent, smoothness_lowest_ratio(exponent)); }
 
+struct SmoothnessOptions {
+  int window_cells = 125;       // areas are summed over windows this wide, cells of the score's level (odd)
+  float exponent = 96;          // smoothness_score's: how much a smoother surface outweighs the fall of the score over a mesh's last cell
+  float same_surface_m = 0.06f; // metres: depths this close are averaged together (the level's SDC threshold)
+};
+
 //! Fills `out` with the smoothness score of `mesh`, a view at `level` with intrinsics `k` (of that
 //! level): A is the area of the triangles, A_smooth that of the same triangles on the depth
-//! averaged over 5×5 cells of the same surface (depths within `same_surface`, the level's SDC
-//! threshold), both summed over windows of window_cells × window_cells cells (odd), and the
-//! ratio scored by smoothness_score: `exponent` sets how much a smoother surface outweighs the
-//! fall of the score to 0 over a mesh's last cell (docs/design.md).
-void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, int window_cells, float exponent, float same_surface,
-                        OwnershipScore& out);
+//! averaged over 5×5 cells of the same surface, both summed over windows, and the ratio scored by
+//! smoothness_score (docs/design.md). Reuses `out`'s buffers.
+void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out);
 
 //! Element function: the summed area (square metres) of the triangles `bits` of a cell whose
 //! corners lie at depths z00 (top left), z10 (top right), z01 (bottom left) and z11 on the rays

@@ -25,8 +25,7 @@ constexpr int kScoreLevel = 1;
 
 // pixel_used for the pixels u0..u1−1 of row v; the first column and row read no cell outside
 // the image.
-ZF_ROW_KERNEL void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1,
-                                                                            std::uint8_t* used_row) {
+ZF_ROW_KERNEL void mark_used_pixels_row(const std::uint8_t* triangles, int width, int v, int u0, int u1, std::uint8_t* used_row) {
   const std::uint8_t* row = triangles + v * width;
   const std::uint8_t* above = v > 0 ? row - width : nullptr;
   int u = u0;
@@ -114,9 +113,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     // level of detail the meshes come from.
     const int score_level = std::min(levels, std::max(0, kScoreLevel - options.depth_level));
     if (options.ownership == Ownership::kSmoothness) {
-      compute_smoothness(*views[c][score_level].mesh, views[c][score_level].intrinsics, score_level,
-                         std::max(1, options.smoothness_window_px >> score_level) | 1, static_cast<float>(options.smoothness_exponent),
-                         static_cast<float>(options.sdc_max_depth_jump_m) * static_cast<float>(1 << score_level), s.ownership);
+      const SmoothnessOptions smoothness{.window_cells = std::max(1, options.smoothness_window_px >> score_level) | 1,
+                                         .exponent = static_cast<float>(options.smoothness_exponent),
+                                         .same_surface_m = static_cast<float>(options.sdc_max_depth_jump_m) * static_cast<float>(1 << score_level)};
+      compute_smoothness(*views[c][score_level].mesh, views[c][score_level].intrinsics, score_level, smoothness, s.ownership);
     } else {
       compute_border_distance(*views[c][score_level].mesh, score_level, std::max(1, options.hole_closing_px >> score_level), s.ownership);
     }

@@ -1,7 +1,8 @@
 #pragma once
 //! \file
-//! One frame set in, one mesh out: foreground, bilateral filter, SDC triangulation and colour per
-//! camera (paper Section III-B), then assembly. `FrameReconstructor` keeps every per-camera
+//! One frame set in, one mesh out: foreground, bilateral filter and SDC triangulation per camera
+//! (paper Section III-B), then zippering (which colours the vertices it keeps) or, for separate
+//! meshes, colour per camera and assembly. `FrameReconstructor` keeps every per-camera
 //! buffer between frames, and the output meshes handed back to it (recycle()), so steady-state
 //! frames allocate no output mesh either.
 //!
@@ -98,7 +99,7 @@ class FrameReconstructor {
     Image<float> filtered;
     Image<float> filter_scratch;
     DepthMesh mesh;
-    std::vector<Rgb8> colors;
+    std::vector<Rgb8> colors;  // per pixel, for separate meshes (the zipper colours its own vertices)
   };
 
   Rig rig_;
