@@ -96,14 +96,22 @@ double uncovered_share(const TriangleMesh& truth, const TriangleMesh& mesh, floa
   return static_cast<double>(uncovered) / total;
 }
 
-TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
-  // A 1.2 m × 1.6 m wall at x = 0 seen by two cameras 2.2 m away, 40° apart.
-  const TriangleMesh wall = grid_mesh(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
+// A 1.2 m × 1.6 m wall at x = 0 seen by two cameras 2.2 m away, 40° apart.
+TriangleMesh wall_mesh() {
+  return grid_mesh(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
+}
+Scene two_views_of(const TriangleMesh& wall) {
   Scene scene;
   for (double angle_deg : {-20.0, 20.0}) {
     const double a = angle_deg * std::numbers::pi / 180;
     scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), wall);
   }
+  return scene;
+}
+
+TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
+  const TriangleMesh wall = wall_mesh();
+  Scene scene = two_views_of(wall);
   TriangleMesh separate;
   std::vector<int> scratch;
   for (const DepthMesh& m : scene.meshes) append_depth_mesh(m, {}, separate, scratch);
@@ -136,12 +144,7 @@ TEST(Zipper, VertexColoursAreSampledWhereTheirCameraSeesThem) {
   // camera (as a Kinect's) and sees a gradient, 4 levels a pixel, camera 1 has no
   // colour image. Each vertex kept from camera 0 has the colour its point projects onto; camera
   // 1's are grey.
-  const TriangleMesh wall = grid_mesh(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
-  Scene scene;
-  for (double angle_deg : {-20.0, 20.0}) {
-    const double a = angle_deg * std::numbers::pi / 180;
-    scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), wall);
-  }
+  Scene scene = two_views_of(wall_mesh());
   CameraModel& colored = scene.models[0];
   colored.color_from_depth = Rigid3d(Eigen::Translation3d(-0.025, 0, 0));
   ColorImage& gradient = scene.colors[0];
