@@ -208,6 +208,19 @@ ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps
   }
 }
 
+// The areas of the triangles of `count` cells of a row (bits `bits`, corner depths z0 on the
+// row's pixels and z1 on the next row's, column rays ray_x, row rays y0 and y1), 0 for a cell
+// without triangles.
+ZF_ROW_KERNEL void triangle_area_row(const std::uint8_t* bits, const float* ray_x, float y0, float y1, const float* z0, const float* z1, int count,
+                                     float* area) {
+  for (int x = 0; x < count; ++x) area[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], z0[x], z0[x + 1], z1[x], z1[x + 1]);
+}
+
+// The mean depth of `count` pixels from their sums and counts, 0 where none was added.
+ZF_ROW_KERNEL void mean_depth_row(const float* sums, const float* counts, int count, float* mean) {
+  for (int x = 0; x < count; ++x) mean[x] = counts[x] > 0 ? sums[x] / std::max(counts[x], 1.0f) : 0.0f;
+}
+
 }  // namespace
 
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out) {
@@ -238,8 +251,7 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
         add_same_surface_taps(centre, padded_row(y + dy) + dx, box.width, options.same_surface_m, sums.data(), counts.data());
       }
     }
-    float* smooth = smooth_depth.ptr<float>(y);
-    for (int x = 0; x < box.width; ++x) smooth[x] = counts[x] > 0 ? sums[x] / counts[x] : 0.0f;
+    mean_depth_row(sums.data(), counts.data(), box.width, smooth_depth.ptr<float>(y));
   }
   cv::Mat area(box.height, box.width, CV_32F, 0.0f), smooth_area(box.height, box.width, CV_32F, 0.0f);
   std::vector<float> ray_x(box.width);  // (u − cx)/fx of the box's columns
@@ -249,13 +261,8 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
     const float *z0 = padded_row(y), *z1 = padded_row(y + 1);
     const float *s0 = smooth_depth.ptr<float>(y), *s1 = smooth_depth.ptr<float>(y + 1);
     const float y0 = static_cast<float>((box.y + y - k.cy) / k.fy), y1 = static_cast<float>((box.y + y + 1 - k.cy) / k.fy);
-    float* a = area.ptr<float>(y);
-    float* sa = smooth_area.ptr<float>(y);
-    for (int x = 0; x + 1 < box.width; ++x) {
-      if (!bits[x]) continue;
-      a[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], z0[x], z0[x + 1], z1[x], z1[x + 1]);
-      sa[x] = cell_triangle_area(ray_x[x], ray_x[x + 1], y0, y1, bits[x], s0[x], s0[x + 1], s1[x], s1[x + 1]);
-    }
+    triangle_area_row(bits, ray_x.data(), y0, y1, z0, z1, box.width - 1, area.ptr<float>(y));
+    triangle_area_row(bits, ray_x.data(), y0, y1, s0, s1, box.width - 1, smooth_area.ptr<float>(y));
   }
   const cv::Size window(options.window_cells, options.window_cells);
   cv::boxFilter(area, area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);

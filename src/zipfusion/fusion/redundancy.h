@@ -96,12 +96,14 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
 //! Element function: the summed area (square metres) of the triangles `bits` of a cell whose
 //! corners lie at depths z00 (top left), z10 (top right), z01 (bottom left) and z11 on the rays
 //! (x0, y0, 1), (x1, y0, 1), (x0, y1, 1), (x1, y1, 1), xi = (ui − cx)/fx, yi = (vi − cy)/fy.
+//! Both areas are formed and weighted by whether their triangle exists (depths are finite, so
+//! an absent one adds exactly 0), without a branch, so that a row of cells vectorises.
 inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uint8_t bits, float z00, float z10, float z01, float z11) {
   const Eigen::Vector3f p(x0 * z00, y0 * z00, z00), r(x1 * z10, y0 * z10, z10), b(x0 * z01, y1 * z01, z01), d(x1 * z11, y1 * z11, z11);
-  float area = 0;
-  if (bits & kUpperTriangle) area += 0.5f * (b - p).cross(r - p).norm();
-  if (bits & kLowerTriangle) area += 0.5f * (b - r).cross(d - r).norm();
-  return area;
+  const float upper = 0.5f * std::sqrt((b - p).cross(r - p).squaredNorm());
+  const float lower = 0.5f * std::sqrt((b - r).cross(d - r).squaredNorm());
+  const float has_upper = static_cast<float>(bits & kUpperTriangle), has_lower = static_cast<float>((bits & kLowerTriangle) >> 1);
+  return 0.0f + has_upper * upper + has_lower * lower;
 }
 
 //! Element function: the score at (x, y) in pixels of a level whose pixels are 1/cells_per_pixel
