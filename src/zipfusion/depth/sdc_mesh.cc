@@ -44,9 +44,8 @@ void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rig
   out.height = height;
   const int count = static_cast<int>(depth_m.size());
   out.depth.assign(depth_m.data.begin(), depth_m.data.end());
-  out.points.resize(count);
   out.triangles.assign(count, 0);
-  const PixelRays rays(k, world_from_depth);
+  out.rays = PixelRays(k, world_from_depth);
   PixelBox box{width, height, 0, 0};
   for (int v = 0; v < height; ++v) {
     const float* row = out.depth.data() + static_cast<size_t>(v) * width;
@@ -55,11 +54,6 @@ void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rig
     if (first == width) continue;
     while (!(row[last] > 0)) --last;
     box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, last + 1), v + 1};
-    // Points between the row's first and last depth, without a branch (where there is no depth
-    // the point is meaningless and never read).
-    Eigen::Vector3f* points = out.points.data() + static_cast<size_t>(v) * width;
-    const Eigen::Vector3f row_ray = rays.row_ray(v);
-    for (int u = first; u <= last; ++u) points[u] = rays.origin + row[u] * (row_ray + static_cast<float>(u) * rays.ray_du);
   }
   if (box.empty()) box = {};
   out.depth_box = box;
@@ -80,7 +74,7 @@ void append_depth_mesh(const DepthMesh& mesh, const std::vector<Rgb8>& colors, T
     int& index = vertex_of_pixel[pixel];
     if (index < 0) {
       index = static_cast<int>(out.positions.size());
-      out.positions.push_back(mesh.points[pixel]);
+      out.positions.push_back(mesh.point(pixel));
       if (with_colors) out.colors.push_back(colors[pixel]);
     }
     return index;

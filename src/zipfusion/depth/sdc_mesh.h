@@ -46,13 +46,20 @@ struct DepthMesh {
   int width = 0;
   int height = 0;
   std::vector<float> depth;                // per pixel, metres along the camera axis; 0 = none
-  std::vector<Eigen::Vector3f> points;     // per pixel, world coordinates (valid where depth > 0)
   std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags; none in the last row and column
+  // The pixels' rays in the world: a pixel's world point is formed from its depth where it is
+  // needed (point()), not stored for every pixel: most are never read (their triangles are
+  // removed as redundant), and the array was three times the depth's memory to write.
+  PixelRays rays;
   // Every pixel with depth lies in this box (a person fills a fraction of a depth image, and
   // per-pixel work outside it is skipped). Set by triangulate_sdc; the default is the whole image.
   PixelBox depth_box{0, 0, 1 << 30, 1 << 30};
 
   int triangle_count() const;
+  //! Element function: the world point of pixel (u, v) (meaningful where it has depth).
+  Eigen::Vector3f point(int u, int v) const { return rays.point(u, v, depth[static_cast<size_t>(v) * width + u]); }
+  //! The same for pixel index `pixel`.
+  Eigen::Vector3f point(int pixel) const { return point(pixel % width, pixel / width); }
   //! depth_box clipped to the image.
   PixelBox box() const {
     return {std::max(depth_box.u0, 0), std::max(depth_box.v0, 0), std::min(depth_box.u1, width), std::min(depth_box.v1, height)};

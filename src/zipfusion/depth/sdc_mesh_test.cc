@@ -104,14 +104,14 @@ TEST(Sdc, ThresholdIsStrict) {
 
 TEST(Sdc, TrianglesFaceTheCameraAndPointsUnproject) {
   const DepthMesh mesh = triangulate(depth_from({{2, 2}, {2, 2}}));
-  const Eigen::Vector3f& p0 = mesh.points[0];
+  const Eigen::Vector3f p0 = mesh.point(0);
   EXPECT_NEAR(p0.x(), (0 - 1.5f) * 2 / 100, 1e-6);
   EXPECT_NEAR(p0.y(), (0 - 1.0f) * 2 / 100, 1e-6);
   EXPECT_FLOAT_EQ(p0.z(), 2);
   for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
     int v[3];
     triangle_pixels(0, 2, bit, v);
-    const Eigen::Vector3f normal = (mesh.points[v[1]] - mesh.points[v[0]]).cross(mesh.points[v[2]] - mesh.points[v[0]]);
+    const Eigen::Vector3f normal = (mesh.point(v[1]) - mesh.point(v[0])).cross(mesh.point(v[2]) - mesh.point(v[0]));
     EXPECT_LT(normal.z(), 0) << "normal must point towards the camera (−z)";
   }
 }

@@ -111,7 +111,7 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
     for (int p : pixels) {
       if (s.marks.test_and_set(p)) continue;
       if (!pixel_has_triangle(mesh, p)) {
-        const ViewPoint point = project_into(other, mesh.points[p]);
+        const ViewPoint point = project_into(other, mesh.point(p));
         const float x = static_cast<float>(p % mesh.width), y = static_cast<float>(p / mesh.width);
         if (owner_is_other(view, x, y, other, point, 2 * distance) && has_triangle_near(other, point, distance)) continue;
       }
@@ -297,7 +297,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   std::vector<Eigen::Vector3f> positions(seam.vertices.size());
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     const PixelVertex& v = seam.vertices[i];
-    positions[i] = (v.camera == a.camera ? a.mesh : b.mesh)->points[v.pixel];
+    positions[i] = (v.camera == a.camera ? a.mesh : b.mesh)->point(v.pixel);
   }
   // Where the seam points are laid out in 2-D: each on its own pixel's ray at the mean depth of
   // the surface around it. Noise moves a point along its camera's ray, which a view from another

@@ -395,8 +395,11 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
   coarse.height = (fine.height - 1) / step + 1;
   const int count = coarse.width * coarse.height;
   coarse.depth.assign(count, 0.0f);
-  coarse.points.clear();
   coarse.triangles.assign(count, 0);
+  // Coarse pixel (u, v) is fine pixel (u·step, v·step): the same rays, steps scaled.
+  coarse.rays = fine.rays;
+  coarse.rays.ray_du = fine.rays.ray_du * static_cast<float>(step);
+  coarse.rays.ray_dv = fine.rays.ray_dv * static_cast<float>(step);
   // The coarse pixels whose fine pixel lies in the fine mesh's depth box.
   const PixelBox fine_box = fine.box();
   if (fine_box.empty()) {

@@ -187,8 +187,8 @@ inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) { 
 inline Rigid3f b_from_a(const MeshView& a, const MeshView& b) { return b.depth_from_world * a.depth_from_world.inverse(Eigen::Isometry); }
 
 //! Element function: the centre of triangle `bit` of cell `cell` of `view` in its camera frame,
-//! from the depth of its three pixels alone (the world points of the mesh are 3 times the memory,
-//! and the searches are bound by memory reads).
+//! from the depth of its three pixels alone, in the camera frame (no world point to form, and the
+//! searches are bound by memory reads).
 //! The cell is given by its column and row (a sweep has them already: an integer division costs
 //! more than all of this arithmetic).
 inline Eigen::Vector3f camera_triangle_centre(const MeshView& view, int cell_u, int cell_v, TriangleBit bit) {
@@ -353,9 +353,8 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
                                        const OverlapMask& mask_a, const OverlapMask& mask_b, FrbrScratch& scratch_a,
                                        FrbrScratch& scratch_b);
 
-//! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (its depth; the
-//! coarse levels carry no world points: every search works from depth), triangulated by SDC with
-//! the depth-jump threshold scaled by 2^level.
+//! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (its depth, and
+//! the rays of those pixels), triangulated by SDC with the depth-jump threshold scaled by 2^level.
 void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse);
 
 //! Clears in `fine` (one level finer than `coarse`) the triangles covered by the triangles that

@@ -307,7 +307,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         const int pixel = v * depth_mesh.width + u;
         if (!s.used[pixel]) continue;
         s.vertex_of_pixel[pixel] = vertex;
-        mesh.positions[first + vertex] = depth_mesh.points[pixel];
+        mesh.positions[first + vertex] = depth_mesh.point(u, v);
         ++vertex;
       }
     }
