@@ -49,7 +49,9 @@ struct DepthMesh {
   std::vector<std::uint8_t> triangles;     // per pixel, TriangleBit flags; none in the last row and column
   // The pixels' rays in the world: a pixel's world point is formed from its depth where it is
   // needed (point()), not stored for every pixel: most are never read (their triangles are
-  // removed as redundant), and the array was three times the depth's memory to write.
+  // removed as redundant), and the array was three times the depth's memory to write. Set by
+  // triangulate_sdc (and downsample_mesh, steps scaled); a mesh made by hand must set it too,
+  // or its points are (0, 0, depth).
   PixelRays rays;
   // Every pixel with depth lies in this box (a person fills a fraction of a depth image, and
   // per-pixel work outside it is skipped). Set by triangulate_sdc; the default is the whole image.

@@ -111,8 +111,9 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
     for (int p : pixels) {
       if (s.marks.test_and_set(p)) continue;
       if (!pixel_has_triangle(mesh, p)) {
-        const ViewPoint point = project_into(other, mesh.point(p));
-        const float x = static_cast<float>(p % mesh.width), y = static_cast<float>(p / mesh.width);
+        const int u = p % mesh.width, v = p / mesh.width;
+        const ViewPoint point = project_into(other, mesh.point(u, v));
+        const float x = static_cast<float>(u), y = static_cast<float>(v);
         if (owner_is_other(view, x, y, other, point, 2 * distance) && has_triangle_near(other, point, distance)) continue;
       }
       s.seam_index[p] = static_cast<int>(seam.vertices.size());
@@ -292,8 +293,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const std::vector<std::pair<int, int>>& constraints = taken.constraints;
   if (seam.vertices.size() < 3) return;
 
-  // The seam vertices' points, gathered once: each face reads three, and from the meshes those
-  // were cache misses.
+  // The seam vertices' points, formed once from their depth: each face reads three.
   std::vector<Eigen::Vector3f> positions(seam.vertices.size());
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     const PixelVertex& v = seam.vertices[i];

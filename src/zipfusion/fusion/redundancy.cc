@@ -218,6 +218,8 @@ ZF_ROW_KERNEL void triangle_area_row(const std::uint8_t* bits, const float* ray_
 
 // The mean depth of `count` pixels from their sums and counts, 0 where none was added.
 ZF_ROW_KERNEL void mean_depth_row(const float* sums, const float* counts, int count, float* mean) {
+  // Every lane divides (so that the select vectorises), by at least 1; where the mean is used
+  // the count is a whole number ≥ 1 and the max changes nothing.
   for (int x = 0; x < count; ++x) mean[x] = counts[x] > 0 ? sums[x] / std::max(counts[x], 1.0f) : 0.0f;
 }
 

@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 #include <functional>
+#include <limits>
 
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/core/mesh_test_util.h"
@@ -305,6 +306,46 @@ TEST(Redundancy, SmoothnessScoreStaysInFloatRangeAndKeepsTheOrder) {
     }
     EXPECT_EQ(smoothness_score(1.5f, exponent), smoothness_score(1.0f, exponent));
     EXPECT_GT(smoothness_score(0.6f, exponent), smoothness_score(0.55f, exponent));
+  }
+}
+
+TEST(Redundancy, CellAreaCountsOnlyTheTrianglesThatExist) {
+  // A unit-ish cell 2 m away; the bottom-right corner's depth stands for a pixel without a usable
+  // value. The upper triangle's area must not depend on it, whatever it is.
+  const float x0 = -0.01f, x1 = 0.01f, y0 = -0.01f, y1 = 0.01f;
+  const float upper_only = cell_triangle_area(x0, x1, y0, y1, kUpperTriangle, 2.0f, 2.0f, 2.0f, 2.0f);
+  EXPECT_GT(upper_only, 0.0f);
+  for (const float z11 : {0.0f, -1.0f, 1e30f, std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN()}) {
+    EXPECT_EQ(cell_triangle_area(x0, x1, y0, y1, kUpperTriangle, 2.0f, 2.0f, 2.0f, z11), upper_only) << z11;
+    EXPECT_EQ(cell_triangle_area(x0, x1, y0, y1, 0, 2.0f, 2.0f, 2.0f, z11), 0.0f) << z11;
+  }
+  EXPECT_EQ(cell_triangle_area(x0, x1, y0, y1, kUpperTriangle | kLowerTriangle, 2.0f, 2.0f, 2.0f, 2.0f), 2.0f * upper_only);
+}
+
+TEST(Redundancy, CoarseLevelPointsAreTheirFinePixelsPoints) {
+  // A tilted plane seen by a rotated, shifted camera: coarse pixel (u, v) of level L is fine pixel
+  // (u·2^L, v·2^L), and its point must be that pixel's, to the bit (the steps scale by powers of two).
+  const Rigid3f world_from_depth = Eigen::Translation3f(0.3f, -1.2f, 1.4f) * Eigen::AngleAxisf(0.7f, Eigen::Vector3f(0.2f, 1.0f, -0.3f).normalized());
+  Image<float> depth(kKinect.width, kKinect.height, 0.0f);
+  for (int v = 100; v < 400; ++v) {
+    for (int u = 150; u < 500; ++u) depth(u, v) = 2.0f + 0.001f * static_cast<float>(u) - 0.0005f * static_cast<float>(v);
+  }
+  DepthMesh fine;
+  triangulate_sdc(depth, kKinect, world_from_depth, {}, fine);
+  EXPECT_TRUE(fine.point(200, 150).isApprox(world_from_depth * unproject(kKinect, 200.0f, 150.0f, depth(200, 150)), 1e-5f));
+  for (const int level : {1, 2}) {
+    DepthMesh coarse;
+    downsample_mesh(fine, level, 0.03f, coarse);
+    const int step = 1 << level;
+    int compared = 0;
+    for (int v = 0; v < coarse.height; v += 7) {
+      for (int u = 0; u < coarse.width; u += 5) {
+        if (coarse.depth[v * coarse.width + u] <= 0) continue;
+        EXPECT_EQ(coarse.point(u, v), fine.point(u * step, v * step)) << "level " << level << " at " << u << ", " << v;
+        ++compared;
+      }
+    }
+    EXPECT_GT(compared, 100) << "level " << level;
   }
 }
 
