@@ -24,10 +24,13 @@ struct SambaFrame {
   std::vector<std::vector<Rgb8>> colors;
 };
 
-inline SambaFrame load_samba_frame(int frame) {
-  const Capture capture = Capture::open(std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam");
+inline std::filesystem::path samba_capture_path() { return std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam"; }
+
+//! `capture`: another capture prepared the same way (a synthetic ring, for the scaling with cameras).
+inline SambaFrame load_samba_frame(int frame, const std::filesystem::path& capture_path = samba_capture_path()) {
+  const Capture capture = Capture::open(capture_path);
   if (frame < 0 || frame >= capture.frame_count()) {
-    throw std::out_of_range("samba-4cam: frame " + std::to_string(frame) + ": the capture has frames 0 to " +
+    throw std::out_of_range(capture_path.string() + ": frame " + std::to_string(frame) + ": the capture has frames 0 to " +
                             std::to_string(capture.frame_count() - 1));
   }
   SambaFrame out;

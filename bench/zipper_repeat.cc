@@ -1,8 +1,10 @@
 // Zippering of one samba-4cam frame set, repeated, for instruction counts under callgrind, which
 // are exact where this machine's times vary by a third (docs/profile.md):
 //   valgrind --tool=callgrind --toggle-collect='zipfusion::zipper_meshes*' build/zf_zipper_repeat
-// with [--frame F] [--unfiltered] [--repeat N]; the total over N calls divided by N is the count
-// per frame set once the first call's allocations are amortised.
+// with [--frame F] [--unfiltered] [--repeat N] [--capture DIR]; the total over N calls divided by
+// N is the count per frame set once the first call's allocations are amortised. --capture takes
+// another capture than samba-4cam (its true poses where it has them), such as a synthetic ring
+// from `zipfusion synth --cameras 8`, to see how the zipper's parts grow with the cameras.
 // Without valgrind it prints the median stage times over the repetitions, one thread unless
 // --threads. Either way it prints what the zipper produced, so that a change meant to be only
 // faster can be checked to give the same mesh.
@@ -23,15 +25,18 @@ using namespace zipfusion;
 int main(int argc, char** argv) {
   int frame = 0, repeat = 3, threads = 1;
   bool filtered = true;
+  std::string capture;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--unfiltered") {
       filtered = false;
+    } else if (i + 1 < argc && arg == "--capture") {
+      capture = argv[++i];
     } else if (i + 1 < argc && (arg == "--frame" || arg == "--repeat" || arg == "--threads")) {
       const int value = std::atoi(argv[++i]);
       (arg == "--frame" ? frame : arg == "--repeat" ? repeat : threads) = value;
     } else {
-      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T]\n");
+      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T] [--capture DIR]\n");
       return 2;
     }
   }
@@ -41,7 +46,7 @@ int main(int argc, char** argv) {
   }
   SambaFrame samba;
   try {
-    samba = load_samba_frame(frame);
+    samba = capture.empty() ? load_samba_frame(frame) : load_samba_frame(frame, capture);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "zf_zipper_repeat: %s\n", e.what());
     return 3;
@@ -65,7 +70,8 @@ int main(int argc, char** argv) {
   std::sort(redundancy_ms.begin(), redundancy_ms.end());
   std::sort(clipping_ms.begin(), clipping_ms.end());
   std::sort(assemble_ms.begin(), assemble_ms.end());
-  std::printf("samba-4cam frame %d, %s, %d pairs: %zu triangles, %d removed as redundant, %d taken into seams, %d seam triangles\n", frame,
+  std::printf("%s frame %d, %s, %d pairs: %zu triangles, %d removed as redundant, %d taken into seams, %d seam triangles\n",
+              capture.empty() ? "samba-4cam" : capture.c_str(), frame,
               filtered ? "bilateral-filtered, border ownership" : "unfiltered, smoothness ownership", result.stats.pairs,
               result.mesh.triangles.size(), result.stats.redundant_removed, result.stats.seam_taken, result.stats.seam_added);
   // A fingerprint of the mesh's triangles that does not depend on their order (CGAL's face order
