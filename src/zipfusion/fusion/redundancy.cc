@@ -329,26 +329,60 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
   return false;
 }
 
-double overlap_share(const MeshView& a, const MeshView& b, float distance) {
-  // Every other cell is enough for a share; points where b sees no surface near their depth
-  // (outside its image, or another surface in front or behind) are counted without a search.
-  const DepthMesh& mesh = *a.mesh;
-  const Rigid3f b_from_a_camera = b_from_a(a, b);
-  int total = 0, near = 0;
+namespace {
+
+// Calls f(cell, bits) for every other cell of `mesh`'s depth box (a checkerboard) that holds a
+// triangle, in row order, until f returns true; the sample overlap_share counts.
+template <typename F>
+void for_each_sampled_cell(const DepthMesh& mesh, F&& f) {
   const PixelBox box = mesh.box();
   for (int v = box.v0; v < box.v1; ++v) {
     for (int u = box.u0 + ((v + box.u0) & 1); u < box.u1; u += 2) {
       const int cell = v * mesh.width + u;
       const std::uint8_t bits = mesh.triangles[cell];
-      if (!bits) continue;
-      ++total;
-      const ViewPoint centre =
-          project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
-      if (!may_see_surface(b, centre, 2 * distance)) continue;
-      near += has_triangle_near(b, centre, distance);
+      if (bits && f(cell, bits)) return;
     }
   }
+}
+
+// Does a sampled triangle of `a` (cell `cell`, bits `bits`: the upper triangle where there is
+// one) have a triangle of b within `distance`? Points where b sees no surface near their depth
+// (outside its image, or another surface in front or behind) are answered without a search.
+bool sampled_triangle_near(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, float distance, int cell, std::uint8_t bits) {
+  const ViewPoint centre =
+      project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
+  return may_see_surface(b, centre, 2 * distance) && has_triangle_near(b, centre, distance);
+}
+
+}  // namespace
+
+double overlap_share(const MeshView& a, const MeshView& b, float distance) {
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
+  int total = 0, near = 0;
+  for_each_sampled_cell(*a.mesh, [&](int cell, std::uint8_t bits) {
+    ++total;
+    near += sampled_triangle_near(a, b, b_from_a_camera, distance, cell, bits);
+    return false;
+  });
   return total ? static_cast<double>(near) / total : 0.0;
+}
+
+bool overlap_reaches(const MeshView& a, const MeshView& b, float distance, double min_share) {
+  int total = 0;
+  for_each_sampled_cell(*a.mesh, [&](int, std::uint8_t) { return ++total, false; });
+  if (total == 0) return 0.0 >= min_share;
+  if (0.0 >= min_share) return true;
+  // The share only grows as the sample is searched: the test is decided at the first search that
+  // brings it to min_share (the same comparison overlap_share's result would meet).
+  const Rigid3f b_from_a_camera = b_from_a(a, b);
+  int near = 0;
+  bool reached = false;
+  for_each_sampled_cell(*a.mesh, [&](int cell, std::uint8_t bits) {
+    near += sampled_triangle_near(a, b, b_from_a_camera, distance, cell, bits);
+    reached = static_cast<double>(near) / total >= min_share;
+    return reached;
+  });
+  return reached;
 }
 
 FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, float redundancy_distance, bool whole_first_sweep,

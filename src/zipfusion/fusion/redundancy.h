@@ -306,6 +306,10 @@ bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, 
 //! every other cell).
 double overlap_share(const MeshView& a, const MeshView& b, float distance);
 
+//! Whether overlap_share(a, b, distance) ≥ min_share, searching only until it is decided: a
+//! pair of cameras that overlap reaches a share of 1 % after a small part of the sample.
+bool overlap_reaches(const MeshView& a, const MeshView& b, float distance, double min_share);
+
 //! A set of marks on the integers [0, size) as bits, for visits: a test reads one of 64 times
 //! fewer bytes than a per-item stamp (a 640×480 mesh's triangles in 77 kB, which stay in cache,
 //! against 2.4 MB of stamps, whose reads missed). Cleared item by item by whoever set the marks.

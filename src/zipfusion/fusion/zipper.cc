@@ -133,8 +133,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   const float d_r = static_cast<float>(options.redundancy_distance_m);
   parallel_for(0, static_cast<int>(candidates.size()), [&](int i) {
     const auto [a, b] = candidates[i];
-    const double share = std::max(overlap_share(views[a][levels], views[b][levels], d_r), overlap_share(views[b][levels], views[a][levels], d_r));
-    overlaps[i] = share >= options.min_overlap_share;
+    // max(share a→b, share b→a) ≥ the minimum, the second searched only when the first falls short.
+    overlaps[i] = overlap_reaches(views[a][levels], views[b][levels], d_r, options.min_overlap_share) ||
+                  overlap_reaches(views[b][levels], views[a][levels], d_r, options.min_overlap_share);
   }, options.num_threads);
   for (size_t i = 0; i < candidates.size(); ++i) {
     if (overlaps[i]) result.pairs.push_back(candidates[i]);

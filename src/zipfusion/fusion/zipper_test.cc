@@ -226,6 +226,37 @@ TEST(Redundancy, BoundaryTrianglesAreThoseTheElementTestFinds) {
   }
 }
 
+TEST(Redundancy, OverlapReachesDecidesAsTheFullShareWould) {
+  // One camera sees the whole wall, the other only its left half; overlap_reaches stops searching
+  // once the share reaches the minimum and must answer as overlap_share ≥ minimum does, at the
+  // share itself and just above it too.
+  const TriangleMesh half_wall = grid_mesh(60, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 0.6f * s, 0.2f + 1.6f * t); });
+  Scene scene;
+  scene.add_camera(look_at({2.2, -0.8, 1.0}, {0, 0, 1.0}), wall_mesh());
+  scene.add_camera(look_at({2.2, 0.8, 1.0}, {0, 0, 1.0}), half_wall);
+  auto view = [&](int c) {
+    return MeshView{&scene.meshes[c], kKinect, scene.models[c].world_from_depth.inverse().cast<float>(), nullptr, c, 0};
+  };
+  const MeshView a = view(0), b = view(1);
+  constexpr float kDistance = 0.03f;
+  const double share = overlap_share(a, b, kDistance);
+  ASSERT_GT(share, 0.3);
+  ASSERT_LT(share, 0.7);
+  for (const double minimum : {0.0, 0.01, share / 2, share, std::nextafter(share, 1.0), 0.99}) {
+    EXPECT_EQ(overlap_reaches(a, b, kDistance, minimum), share >= minimum) << "minimum share " << minimum;
+  }
+  // A view of nothing reaches only a minimum of 0.
+  DepthMesh empty;
+  empty.width = kKinect.width;
+  empty.height = kKinect.height;
+  empty.depth.assign(static_cast<size_t>(kKinect.width) * kKinect.height, 0.0f);
+  empty.triangles.assign(empty.depth.size(), 0);
+  const MeshView nothing{&empty, kKinect, a.depth_from_world, nullptr, 2, 0};
+  EXPECT_TRUE(overlap_reaches(nothing, b, kDistance, 0.0));
+  EXPECT_FALSE(overlap_reaches(nothing, b, kDistance, 0.01));
+  EXPECT_FALSE(overlap_reaches(a, nothing, kDistance, 0.01));
+}
+
 TEST(Redundancy, SmoothnessScoreRanksTheSmootherSheetHigher) {
   // Three views of a plane 2.5 m away at one level of a 160×120 image: noise-free, with 5 mm and
   // with 10 mm of noise along the rays. The area ratio is 1 on the flat sheet (up to rounding),
