@@ -1,7 +1,8 @@
 #pragma once
-// One frame set of samba-4cam with the true poses, prepared as the reconstruction prepares it:
-// foreground depth, bilateral-filtered depth, the SDC meshes of both and per-pixel colours. Shared
-// by the kernel benchmarks and zf_zipper_repeat; the capture is found through ZF_SOURCE_DIR.
+// One frame set of samba-4cam (or of another capture given) with the true poses, prepared as the
+// reconstruction prepares it: foreground depth, bilateral-filtered depth, the SDC meshes of both
+// and per-pixel colours. Shared by the kernel benchmarks and zf_zipper_repeat; samba-4cam is
+// found through ZF_SOURCE_DIR.
 
 #include <filesystem>
 #include <stdexcept>
@@ -26,7 +27,7 @@ struct SambaFrame {
 
 inline std::filesystem::path samba_capture_path() { return std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam"; }
 
-//! `capture`: another capture prepared the same way (a synthetic ring, for the scaling with cameras).
+//! `capture_path`: another capture to prepare the same way (a synthetic ring, for the scaling with cameras).
 inline SambaFrame load_samba_frame(int frame, const std::filesystem::path& capture_path = samba_capture_path()) {
   const Capture capture = Capture::open(capture_path);
   if (frame < 0 || frame >= capture.frame_count()) {

@@ -1,5 +1,6 @@
-// Zippering of one samba-4cam frame set, repeated, for instruction counts under callgrind, which
-// are exact where this machine's times vary by a third (docs/profile.md):
+// Zippering of one samba-4cam frame set (or one of the capture given), repeated, for instruction
+// counts under callgrind, which are exact where this machine's times vary by a third
+// (docs/profile.md):
 //   valgrind --tool=callgrind --toggle-collect='zipfusion::zipper_meshes*' build/zf_zipper_repeat
 // with [--frame F] [--unfiltered] [--repeat N] [--capture DIR]; the total over N calls divided by
 // N is the count per frame set once the first call's allocations are amortised. --capture takes

@@ -6,8 +6,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
-#include <cstdint>
-#include <cstring>
 
 namespace zipfusion {
 namespace {
@@ -24,11 +22,6 @@ using TriangulationData = CGAL::Triangulation_data_structure_2<VertexBase, FaceB
 // CGAL split them at an approximate intersection instead of failing.
 using Delaunay = CGAL::Constrained_Delaunay_triangulation_2<Kernel, TriangulationData, CGAL::Exact_predicates_tag>;
 
-// After redundancy removal the two meshes meet within a pixel or two, so the other mesh's
-// triangles near a seam triangle lie within 2 cells of its projection; wider windows (up to 4)
-// found the same seams on samba-4cam at 25 % more time.
-constexpr int kSeamWindow = 2;
-
 // The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
 // meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
 // change until both are), and each seam reads both lists.
@@ -40,25 +33,6 @@ void select_seeds(const MeshView& view, const OverlapMask& mask, SeamScratch& s)
       s.seeds.push_back(id);
     }
   }
-}
-
-// False when no cell of `mesh` within kSeamWindow cells of p's cell (the cells a has_triangle_near
-// search with that window reads) holds a triangle; true otherwise, and near the image's edges.
-// Most seam seeds that find no triangle of the other mesh lie where redundancy removal cleared
-// it: this reads five rows of five bits instead of searching them (samba-4cam unfiltered: a
-// third of the failed searches).
-bool may_have_seam_neighbour(const DepthMesh& mesh, const ViewPoint& p) {
-  const int cu = floor_to_int(p.x), cv = floor_to_int(p.y);
-  if (cu < kSeamWindow || cv < kSeamWindow || cu + kSeamWindow > mesh.width - 2 || cv + kSeamWindow > mesh.height - 2) return true;
-  static_assert(kSeamWindow == 2, "five cells a row: four bytes read as one word, and one more");
-  const std::uint8_t* row = mesh.triangles.data() + static_cast<size_t>(cv - kSeamWindow) * mesh.width + cu - kSeamWindow;
-  std::uint32_t any = 0;
-  for (int k = 0; k <= 2 * kSeamWindow; ++k, row += mesh.width) {
-    std::uint32_t four;
-    std::memcpy(&four, row, sizeof four);
-    any |= four | row[4];
-  }
-  return any != 0;
 }
 
 // The triangles of `a` within d_c of `b` that border the seam: a's boundary triangles with a
@@ -77,7 +51,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const SeamScratch
   s.taken.clear();
   s.visited.clear();
   auto test = [&](int id, const ViewPoint& centre) {
-    if (!may_see_point(b, centre, 2 * distance) || !may_have_seam_neighbour(*b.mesh, centre) ||
+    if (!may_see_point(b, centre, 2 * distance) || !seam_window_has_triangle(*b.mesh, centre) ||
         !has_triangle_near(b, centre, distance, kSeamWindow)) {
       return;
     }

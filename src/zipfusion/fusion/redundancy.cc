@@ -348,7 +348,8 @@ void for_each_sampled_cell(const DepthMesh& mesh, F&& f) {
 // Does a sampled triangle of `a` (cell `cell`, bits `bits`: the upper triangle where there is
 // one) have a triangle of b within `distance`? Points where b sees no surface near their depth
 // (outside its image, or another surface in front or behind) are answered without a search.
-bool sampled_triangle_near(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, float distance, int cell, std::uint8_t bits) {
+bool sampled_triangle_near(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, float distance, int cell,
+                           std::uint8_t bits) {
   const ViewPoint centre =
       project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
   return may_see_surface(b, centre, 2 * distance) && has_triangle_near(b, centre, distance);
@@ -369,9 +370,12 @@ double overlap_share(const MeshView& a, const MeshView& b, float distance) {
 
 bool overlap_reaches(const MeshView& a, const MeshView& b, float distance, double min_share) {
   int total = 0;
-  for_each_sampled_cell(*a.mesh, [&](int, std::uint8_t) { return ++total, false; });
-  if (total == 0) return 0.0 >= min_share;
-  if (0.0 >= min_share) return true;
+  for_each_sampled_cell(*a.mesh, [&](int, std::uint8_t) {
+    ++total;
+    return false;
+  });
+  // A share of 0 (no sample, or nothing near) reaches only a minimum of 0 or less.
+  if (total == 0 || 0.0 >= min_share) return 0.0 >= min_share;
   // The share only grows as the sample is searched: the test is decided at the first search that
   // brings it to min_share (the same comparison overlap_share's result would meet).
   const Rigid3f b_from_a_camera = b_from_a(a, b);

@@ -307,7 +307,9 @@ bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, 
 double overlap_share(const MeshView& a, const MeshView& b, float distance);
 
 //! Whether overlap_share(a, b, distance) ≥ min_share, searching only until it is decided: a
-//! pair of cameras that overlap reaches a share of 1 % after a small part of the sample.
+//! pair of cameras that overlap reaches the minimum (ZipperOptions::min_overlap_share, 1 % by
+//! default) after a small part of the sample; a pair below it searches the whole sample, as
+//! overlap_share does (after a pass that counts the sample).
 bool overlap_reaches(const MeshView& a, const MeshView& b, float distance, double min_share);
 
 //! A set of marks on the integers [0, size) as bits, for visits: a test reads one of 64 times

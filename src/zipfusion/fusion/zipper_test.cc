@@ -257,6 +257,34 @@ TEST(Redundancy, OverlapReachesDecidesAsTheFullShareWould) {
   EXPECT_FALSE(overlap_reaches(a, nothing, kDistance, 0.01));
 }
 
+TEST(Clipping, SeamWindowPreCheckNeverRejectsWhatTheSearchFinds) {
+  // The pre-check must say "maybe" wherever a has_triangle_near search with the seam's window
+  // finds a triangle: around a cleared hole (its rim is where a smaller window would miss), at
+  // the image's edges (a mesh that reaches them) and off the image.
+  const Intrinsics k{.width = 64, .height = 48, .fx = 58, .fy = 58, .cx = 31.5, .cy = 23.5};
+  Image<float> depth(k.width, k.height, 2.5f);
+  DepthMesh mesh;
+  triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
+  for (int v = 15; v < 30; ++v) {
+    for (int u = 20; u < 44; ++u) mesh.triangles[v * k.width + u] = 0;  // redundancy removal cleared these
+  }
+  const MeshView view{&mesh, k, Rigid3f::Identity(), nullptr, 0, 0};
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> x(-3.0f, k.width + 3.0f), y(-3.0f, k.height + 3.0f), z(2.45f, 2.55f);
+  int found = 0, rejected = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const float px = x(random), py = y(random), pz = z(random);
+    const ViewPoint p = project_camera_point(view, unproject(k, px, py, pz));
+    const bool near = has_triangle_near(view, p, 0.1f, kSeamWindow);  // a distance wider than the window
+    const bool maybe = seam_window_has_triangle(mesh, p);
+    if (near) ++found;
+    if (!maybe) ++rejected;
+    ASSERT_TRUE(maybe || !near) << "rejected (" << px << ", " << py << "), where the search finds a triangle";
+  }
+  EXPECT_GT(found, 10000);
+  EXPECT_GT(rejected, 500);  // the centre of the hole: 20 × 11 cells of 64 × 48
+}
+
 TEST(Redundancy, SmoothnessScoreRanksTheSmootherSheetHigher) {
   // Three views of a plane 2.5 m away at one level of a 160×120 image: noise-free, with 5 mm and
   // with 10 mm of noise along the rays. The area ratio is 1 on the flat sheet (up to rounding),
