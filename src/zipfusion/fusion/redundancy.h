@@ -303,7 +303,8 @@ bool may_see_point(const MeshView& b, const ViewPoint& p, float depth_tolerance)
 bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, const ViewPoint& p, float depth_tolerance);
 
 //! Share (0..1) of `a`'s triangles that have a triangle of `b` within `distance` (estimated on
-//! every other cell).
+//! every other cell). The zipper only needs to know whether a minimum is reached and calls
+//! overlap_reaches; this full figure is its definition, which the tests compare it with.
 double overlap_share(const MeshView& a, const MeshView& b, float distance);
 
 //! Whether overlap_share(a, b, distance) ≥ min_share, searching only until it is decided: a
