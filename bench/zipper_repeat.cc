@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <exception>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "samba_frame.h"
@@ -57,20 +58,20 @@ int main(int argc, char** argv) {
   // The reconstruction's default ownership for each input.
   const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness, .num_threads = threads};
   ZipperScratch scratch;
-  std::vector<double> redundancy_ms, clipping_ms, assemble_ms;
+  // Per stage, as ZipperStats names them, the times of every call.
+  const std::vector<std::pair<const char*, double ZipperStats::*>> stages{
+      {"pyramid", &ZipperStats::pyramid_ms},   {"overlap", &ZipperStats::overlap_ms},   {"redundancy", &ZipperStats::redundancy_ms},
+      {"clipping", &ZipperStats::clipping_ms}, {"assembly", &ZipperStats::assemble_ms}, {"colour", &ZipperStats::color_ms}};
+  std::vector<std::vector<double>> stage_ms(stages.size());
   ZipperResult result;
   for (int r = 0; r < repeat; ++r) {
     std::vector<DepthMesh> work = meshes;  // zippering clears bits
     std::vector<ZipperCamera> cameras;
     for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.frames.cameras[c].color, &samba.rig.cameras[c]});
     result = zipper_meshes(cameras, options, scratch, std::move(result.mesh));  // as the pipeline reuses its meshes
-    redundancy_ms.push_back(result.stats.redundancy_ms);
-    clipping_ms.push_back(result.stats.clipping_ms);
-    assemble_ms.push_back(result.stats.assemble_ms);
+    for (size_t k = 0; k < stages.size(); ++k) stage_ms[k].push_back(result.stats.*stages[k].second);
   }
-  std::sort(redundancy_ms.begin(), redundancy_ms.end());
-  std::sort(clipping_ms.begin(), clipping_ms.end());
-  std::sort(assemble_ms.begin(), assemble_ms.end());
+  for (auto& times : stage_ms) std::sort(times.begin(), times.end());
   std::printf("%s frame %d, %s, %d pairs: %zu triangles, %d removed as redundant, %d taken into seams, %d seam triangles\n",
               capture.empty() ? "samba-4cam" : capture.c_str(), frame,
               filtered ? "bilateral-filtered, border ownership" : "unfiltered, smoothness ownership", result.stats.pairs,
@@ -90,7 +91,14 @@ int main(int argc, char** argv) {
     fingerprint += h;
   }
   std::printf("triangle fingerprint %016llx\n", static_cast<unsigned long long>(fingerprint));
-  std::printf("median of %d on %d thread(s): redundancy %.2f ms, clipping %.2f ms, assembly %.2f ms\n", repeat, threads,
-              redundancy_ms[repeat / 2], clipping_ms[repeat / 2], assemble_ms[repeat / 2]);
+  // The vertices' colours, in their order (a function of the triangles: the used pixels in order).
+  std::uint64_t colour_fingerprint = 0xcbf29ce484222325ull;
+  for (const Rgb8& c : result.mesh.colors) {
+    for (const unsigned char channel : {c.r, c.g, c.b}) colour_fingerprint = (colour_fingerprint ^ channel) * 0x100000001b3ull;
+  }
+  std::printf("colour fingerprint %016llx\n", static_cast<unsigned long long>(colour_fingerprint));
+  std::printf("median of %d on %d thread(s):", repeat, threads);
+  for (size_t k = 0; k < stages.size(); ++k) std::printf("%s %s %.2f ms", k ? "," : "", stages[k].first, stage_ms[k][repeat / 2]);
+  std::printf("\n");
   return 0;
 }
