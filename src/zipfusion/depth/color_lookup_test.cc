@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <vector>
+
 namespace zipfusion {
 namespace {
 
@@ -54,6 +57,63 @@ TEST(ColorLookup, ProjectsThroughColorFromDepth) {
   // Without a colour image every vertex is grey.
   lookup_colors(mesh, camera, nullptr, colors);
   for (const Rgb8& c : colors) EXPECT_EQ(c, kNoColor);
+}
+
+// The row form (project_row, then sample) and lookup_colors, which uses it, must give exactly
+// the colours at() gives, pixel by pixel: over rows longer than one chunk, for a rotated colour
+// camera with and without distortion, at depths where points fall outside the colour image and
+// behind the colour camera.
+TEST(ColorLookup, RowFormGivesTheColoursOfThePixelForm) {
+  for (const bool distorted : {false, true}) {
+    CameraModel camera;
+    const int width = ColorLookup::kRowChunk + 45, height = 7;
+    camera.depth_intrinsics = {.width = width, .height = height, .fx = 140, .fy = 150, .cx = 150.3, .cy = 3.2};
+    Intrinsics color_k{.width = 320, .height = 90, .fx = 160, .fy = 155, .cx = 160.7, .cy = 44.1};
+    if (distorted) {
+      color_k.distortion = {0.08, -0.11, 0.002, -0.001, 0.02};
+      color_k.has_distortion = true;
+    }
+    camera.color_intrinsics = color_k;
+    // Rotated 10° about y and placed 1.1 m in front of the depth camera: depths up to 1.1 m
+    // (plus the rotation's share) lie behind it.
+    camera.color_from_depth.linear() = Eigen::AngleAxisd(0.17, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    camera.color_from_depth.translation() = Eigen::Vector3d(0.03, -0.01, -1.1);
+    DepthMesh mesh;
+    mesh.width = width;
+    mesh.height = height;
+    mesh.depth.resize(static_cast<size_t>(width) * height);
+    for (int i = 0; i < width * height; ++i) mesh.depth[i] = i % 11 == 0 ? 0.0f : 0.6f + 0.004f * static_cast<float>((i * 37) % 500);
+    ColorImage image(320, 90);
+    for (int y = 0; y < 90; ++y) {
+      for (int x = 0; x < 320; ++x) image(x, y) = {static_cast<unsigned char>((x * 7 + y) % 256), static_cast<unsigned char>((y * 13) % 256), 5};
+    }
+    const ColorLookup lookup(camera, &image);
+    std::vector<Rgb8> colors;
+    lookup_colors(mesh, camera, &image, colors);
+    int behind = 0, inside = 0;
+    float x[ColorLookup::kRowChunk], y[ColorLookup::kRowChunk];
+    for (int v = 0; v < height; ++v) {
+      for (int u0 = 0; u0 < width; u0 += ColorLookup::kRowChunk) {
+        const int count = std::min(ColorLookup::kRowChunk, width - u0);
+        lookup.project_row(v, u0, count, mesh.depth.data() + v * width + u0, x, y);
+        for (int i = 0; i < count; ++i) {
+          const int u = u0 + i;
+          const float z = mesh.depth[v * width + u];
+          if (z <= 0) {
+            EXPECT_EQ(colors[v * width + u], kNoColor);
+            continue;
+          }
+          const Rgb8 expected = lookup.at(u, v, z);
+          EXPECT_EQ(lookup.sample(x[i], y[i]), expected) << u << "," << v << (distorted ? " distorted" : "");
+          EXPECT_EQ(colors[v * width + u], expected) << u << "," << v << (distorted ? " distorted" : "");
+          behind += x[i] == -1.0f;
+          inside += !(expected == kNoColor);
+        }
+      }
+    }
+    EXPECT_GT(behind, 100);  // the case behind the colour camera is exercised
+    EXPECT_GT(inside, 500);  // and so is the sampling
+  }
 }
 
 }  // namespace

@@ -401,11 +401,21 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     const ColorLookup lookup(*cameras[c].model, cameras[c].color);
     Rgb8* out = mesh.colors.data() + vertex_offset[c];
+    if (!lookup.has_image()) {
+      std::fill_n(out, vertex_count[c], kNoColor);
+      return;
+    }
     const PixelBox box = depth_mesh.box();
+    float x[ColorLookup::kRowChunk], y[ColorLookup::kRowChunk];
     for (int v = box.v0; v < box.v1; ++v) {
-      for (int u = box.u0; u < box.u1; ++u) {
-        const int pixel = v * depth_mesh.width + u;
-        if (s.used[pixel]) *out++ = lookup.at(u, v, depth_mesh.depth[pixel]);
+      const int row = v * depth_mesh.width;
+      for (int u0 = box.u0; u0 < box.u1; u0 += ColorLookup::kRowChunk) {
+        const int chunk = std::min(ColorLookup::kRowChunk, box.u1 - u0);
+        lookup.project_row(v, u0, chunk, depth_mesh.depth.data() + row + u0, x, y);
+        const std::uint8_t* used = s.used.data() + row + u0;
+        for (int k = 0; k < chunk; ++k) {
+          if (used[k]) *out++ = lookup.sample(x[k], y[k]);
+        }
       }
     }
   }, options.num_threads);
