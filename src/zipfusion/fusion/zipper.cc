@@ -301,21 +301,37 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     const int first = vertex_offset[c];
     const PixelBox box = depth_mesh.box();
-    // Used pixels numbered in pixel order, written as they are numbered.
+    // Used pixels numbered in pixel order, written as they are numbered; each row of cells'
+    // triangles written (in cell order) as soon as the two rows of pixels it joins are numbered,
+    // so that their numbers are read back from the cache (numbering the whole image first and
+    // then writing every triangle read them from memory: a third of this loop's time).
+    const int width = depth_mesh.width;
     int vertex = 0;
-    for (int v = box.v0; v < box.v1; ++v) {
-      for (int u = box.u0; u < box.u1; ++u) {
-        const int pixel = v * depth_mesh.width + u;
-        if (!s.used[pixel]) continue;
-        s.vertex_of_pixel[pixel] = vertex;
+    auto number_row = [&](int v) {
+      const int row = v * width;
+      for_each_nonzero_byte(s.used.data() + row + box.u0, box.u1 - box.u0, [&](int k, std::uint8_t) {
+        const int u = box.u0 + k;
+        s.vertex_of_pixel[row + u] = vertex;
         mesh.positions[first + vertex] = depth_mesh.point(u, v);
         ++vertex;
-      }
-    }
+      });
+    };
     Eigen::Vector3i* out = mesh.triangles.data() + triangle_offset[c];
-    for_each_triangle(depth_mesh, [&](const int* p) {
-      *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
-    });
+    if (box.v1 > box.v0) number_row(box.v0);
+    for (int v = box.v0; v < box.v1; ++v) {
+      if (v + 1 < box.v1) number_row(v + 1);
+      // Triangles lie in the cells of the box but its last row and column.
+      const int row = v * width;
+      for_each_nonzero_byte(depth_mesh.triangles.data() + row + box.u0, std::min(box.u1, width - 1) - box.u0, [&](int k, std::uint8_t bits) {
+        const int cell = row + box.u0 + k;
+        for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+          if (!(bits & bit)) continue;
+          int p[3];
+          triangle_pixels(cell, width, bit, p);
+          *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
+        }
+      });
+    }
   }, options.num_threads);
   auto vertex = [&](const PixelVertex& v) { return vertex_offset[v.camera] + scratch.cameras[v.camera].vertex_of_pixel[v.pixel]; };
   // Directed edges between seam vertices, by slot (a seam vertex's index among them): per slot,
