@@ -11,6 +11,7 @@
 // faster can be checked to give the same mesh.
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -90,6 +91,13 @@ int main(int argc, char** argv) {
     }
     fingerprint += h;
   }
+  // The cameras' ownership scores, bit for bit: a change meant to compute them faster must not
+  // move them.
+  std::uint64_t score_fingerprint = 0xcbf29ce484222325ull;
+  for (const ZipperScratch::Camera& camera : scratch.cameras) {
+    for (const float cell : camera.ownership.cells) score_fingerprint = (score_fingerprint ^ std::bit_cast<std::uint32_t>(cell)) * 0x100000001b3ull;
+  }
+  std::printf("ownership score fingerprint %016llx\n", static_cast<unsigned long long>(score_fingerprint));
   std::printf("triangle fingerprint %016llx\n", static_cast<unsigned long long>(fingerprint));
   // The vertices' colours, in their order (a function of the triangles: the used pixels in order).
   std::uint64_t colour_fingerprint = 0xcbf29ce484222325ull;

@@ -223,13 +223,35 @@ ZF_ROW_KERNEL void mean_depth_row(const float* sums, const float* counts, int co
   for (int x = 0; x < count; ++x) mean[x] = counts[x] > 0 ? sums[x] / std::max(counts[x], 1.0f) : 0.0f;
 }
 
+// The summed-area tables of two width × height maps: (width + 1) × (height + 1) sums each, entry
+// (x, y) the sum of the cells left of x and above y, in double. Built together: each row's
+// running sum is a chain of dependent additions, and two chains side by side take the time of one.
+void build_summed_area_tables(const float* map_a, const float* map_b, int width, int height, std::vector<double>& table_a,
+                              std::vector<double>& table_b) {
+  const int table_width = width + 1;
+  table_a.assign(static_cast<size_t>(table_width) * (height + 1), 0.0);
+  table_b.assign(static_cast<size_t>(table_width) * (height + 1), 0.0);
+  for (int y = 0; y < height; ++y) {
+    const float* row_a = map_a + static_cast<size_t>(y) * width;
+    const float* row_b = map_b + static_cast<size_t>(y) * width;
+    const size_t above = static_cast<size_t>(y) * table_width, here = above + table_width;
+    double sum_a = 0, sum_b = 0;
+    for (int x = 0; x < width; ++x) {
+      sum_a += row_a[x];
+      sum_b += row_b[x];
+      table_a[here + x + 1] = table_a[above + x + 1] + sum_a;
+      table_b[here + x + 1] = table_b[above + x + 1] + sum_b;
+    }
+  }
+}
+
 }  // namespace
 
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out) {
   constexpr int kSmoothRadius = 2;  // the averaged depth: 5×5 cells
-  // Cells outside the depth box have no triangles and add no area to a window: the box filter's
-  // zero border stands for them, so the box needs no room for the window (at 250 pixels that
-  // would be most of the image), only for the averaging.
+  // Cells outside the depth box have no triangles and add no area to a window: a window is cut
+  // at the box's edges, so the box needs no room for the window (at 250 pixels that would be
+  // most of the image), only for the averaging.
   const cv::Rect box = start_score(mesh, level, kSmoothRadius + 1, out);
   if (box.empty()) return;
   // The box's depth with kSmoothRadius cells of no depth all round, so the taps need no bounds tests.
@@ -241,7 +263,9 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
   // The depth averaged over the 5×5 cells on the same surface (the SDC test's threshold): a plain
   // average mixes the depths of an arm and the torso behind it into steep slopes whose area says
   // nothing about noise (on noise-free synthetic depth it put the ratio anywhere in 0.8–2).
-  cv::Mat smooth_depth(box.height, box.width, CV_32F, 0.0f);
+  std::vector<float>& smooth_depth = out.smooth_depth;
+  smooth_depth.assign(static_cast<size_t>(box.width) * box.height, 0.0f);
+  auto smooth_row = [&](int y) { return smooth_depth.data() + static_cast<size_t>(y) * box.width; };
   std::vector<float>& sums = out.row_sums;
   std::vector<float>& counts = out.row_counts;
   for (int y = 0; y < box.height; ++y) {
@@ -253,29 +277,47 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
         add_same_surface_taps(centre, padded_row(y + dy) + dx, box.width, options.same_surface_m, sums.data(), counts.data());
       }
     }
-    mean_depth_row(sums.data(), counts.data(), box.width, smooth_depth.ptr<float>(y));
+    mean_depth_row(sums.data(), counts.data(), box.width, smooth_row(y));
   }
-  cv::Mat area(box.height, box.width, CV_32F, 0.0f), smooth_area(box.height, box.width, CV_32F, 0.0f);
-  std::vector<float> ray_x(box.width);  // (u − cx)/fx of the box's columns
+  // The triangles' areas per cell, on the depth and on the averaged depth (the last row and
+  // column hold no triangle and stay 0).
+  const size_t cells = static_cast<size_t>(box.width) * box.height;
+  std::vector<float>& area = out.area;
+  std::vector<float>& smooth_area = out.smooth_area;
+  area.assign(cells, 0.0f);
+  smooth_area.assign(cells, 0.0f);
+  std::vector<float>& ray_x = out.ray_x;  // (u − cx)/fx of the box's columns
+  ray_x.resize(box.width);
   for (int x = 0; x < box.width; ++x) ray_x[x] = static_cast<float>((box.x + x - k.cx) / k.fx);
   for (int y = 0; y + 1 < box.height; ++y) {
     const std::uint8_t* bits = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
     const float *z0 = padded_row(y), *z1 = padded_row(y + 1);
-    const float *s0 = smooth_depth.ptr<float>(y), *s1 = smooth_depth.ptr<float>(y + 1);
+    const float *s0 = smooth_row(y), *s1 = smooth_row(y + 1);
     const float y0 = static_cast<float>((box.y + y - k.cy) / k.fy), y1 = static_cast<float>((box.y + y + 1 - k.cy) / k.fy);
-    triangle_area_row(bits, ray_x.data(), y0, y1, z0, z1, box.width - 1, area.ptr<float>(y));
-    triangle_area_row(bits, ray_x.data(), y0, y1, s0, s1, box.width - 1, smooth_area.ptr<float>(y));
+    triangle_area_row(bits, ray_x.data(), y0, y1, z0, z1, box.width - 1, area.data() + static_cast<size_t>(y) * box.width);
+    triangle_area_row(bits, ray_x.data(), y0, y1, s0, s1, box.width - 1, smooth_area.data() + static_cast<size_t>(y) * box.width);
   }
-  const cv::Size window(options.window_cells, options.window_cells);
-  cv::boxFilter(area, area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
-  cv::boxFilter(smooth_area, smooth_area, CV_32F, window, {-1, -1}, false, cv::BORDER_CONSTANT);
+  // Window sums from summed-area tables, only at the cells with triangles, the only ones scored
+  // (a box filter computed every cell of the box, through a border as wide as the window). In
+  // double the sums are exact unless the box's areas span more than about 29 binary orders of
+  // magnitude, so each window's sum rounds to the float that OpenCV's box filter, which sums in
+  // double too, gave: the ownership scores of samba-4cam and of synthetic rings are unchanged
+  // bit for bit (zf_zipper_repeat's score fingerprint).
+  build_summed_area_tables(area.data(), smooth_area.data(), box.width, box.height, out.area_table, out.smooth_area_table);
+  const int radius = options.window_cells / 2;
   const float lowest_ratio = smoothness_lowest_ratio(options.exponent);
+  const int table_width = box.width + 1;
   for (int y = 0; y < box.height; ++y) {
-    const float* a = area.ptr<float>(y);
-    const float* sa = smooth_area.ptr<float>(y);
+    const int top = std::max(0, y - radius) * table_width, bottom = std::min(box.height, y + radius + 1) * table_width;
     const int base = (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) {
-      if (mesh.triangles[base + x] && a[x] > 0) out.cell(box.x + x, box.y + y) = smoothness_score(sa[x] / a[x], options.exponent, lowest_ratio);
+      if (!mesh.triangles[base + x]) continue;
+      const int left = std::max(0, x - radius), right = std::min(box.width, x + radius + 1);
+      auto window_sum = [&](const std::vector<double>& t) {
+        return static_cast<float>(t[bottom + right] - t[top + right] - t[bottom + left] + t[top + left]);
+      };
+      const float a = window_sum(out.area_table);
+      if (a > 0) out.cell(box.x + x, box.y + y) = smoothness_score(window_sum(out.smooth_area_table) / a, options.exponent, lowest_ratio);
     }
   }
 }

@@ -60,7 +60,8 @@ struct OwnershipScore {
   const float& cell(int u, int v) const { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
 
   // Not part of the score: buffers compute_smoothness reuses from one frame to the next.
-  std::vector<float> padded_depth, row_sums, row_counts;
+  std::vector<float> padded_depth, row_sums, row_counts, smooth_depth, ray_x, area, smooth_area;
+  std::vector<double> area_table, smooth_area_table;
 };
 
 //! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its

@@ -354,6 +354,40 @@ TEST(Redundancy, SmoothnessIsMeasuredOnEachSurfaceApart) {
   EXPECT_NEAR(mean(65, 94, 87, 87) / away, 1.0, 0.05) << "below the box";
 }
 
+TEST(Redundancy, SmoothnessWindowReachesExactlyItsHalfWidth) {
+  // A noise-free sheet with one pixel, (80, 60), raised by 1 cm. The raised pixel adds area to
+  // the raw triangles of cells 79 and 80 (of its row and the one above); averaging spreads it
+  // over pixels 78..82 and makes the averaged surface a little steeper, and so larger, than the
+  // raw one in cells 77, 78, 81 and 82, which alone would put the ratio above 1, counted as 1.
+  // So a cell whose 13-cell window (6 each way) reaches cell 79 or 80 scores below the flat
+  // sheet's score, and one whose window ends a cell short scores exactly that: cells 73 and 86
+  // reach, 72 and 87 do not, and likewise down the column. Cells near the sheet's border, whose
+  // windows reach past it, score as the flat sheet too.
+  const Intrinsics k{.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  Image<float> depth(k.width, k.height, 0.0f);
+  for (int v = 10; v < 110; ++v) {
+    for (int u = 20; u < 140; ++u) depth(u, v) = 2.5f;
+  }
+  depth(80, 60) += 0.01f;
+  DepthMesh mesh;
+  triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
+  OwnershipScore score;
+  compute_smoothness(mesh, k, 0, {.window_cells = 13, .exponent = 1, .same_surface_m = 0.03f}, score);
+  const float flat = smoothness_score(1.0f, 1);
+  EXPECT_EQ(score.cell(72, 60), flat);
+  EXPECT_LT(score.cell(73, 60), flat);
+  EXPECT_LT(score.cell(86, 60), flat);
+  EXPECT_EQ(score.cell(87, 60), flat);
+  EXPECT_EQ(score.cell(80, 52), flat);
+  EXPECT_LT(score.cell(80, 53), flat);
+  EXPECT_LT(score.cell(80, 66), flat);
+  EXPECT_EQ(score.cell(80, 67), flat);
+  for (const auto& [u, v] : {std::pair{20, 10}, std::pair{138, 10}, std::pair{20, 108}, std::pair{138, 108}, std::pair{21, 60}, std::pair{80, 11}}) {
+    EXPECT_EQ(score.cell(u, v), flat) << u << "," << v;
+  }
+  EXPECT_EQ(score.cell(19, 60), 0.0f);  // no triangle: no score
+}
+
 TEST(Redundancy, SmoothnessScoreStaysInFloatRangeAndKeepsTheOrder) {
   for (const float exponent : {1.0f, 12.0f, 96.0f, 128.0f}) {
     float previous = 0;
