@@ -333,85 +333,89 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       });
     }
   }, options.num_threads);
-  auto vertex = [&](const PixelVertex& v) { return vertex_offset[v.camera] + scratch.cameras[v.camera].vertex_of_pixel[v.pixel]; };
-  // Directed edges between seam vertices, by slot (a seam vertex's index among them): per slot,
-  // the slots its outgoing edges end at (a vertex has a handful). Other vertices are -1 in
-  // seam_slot. Each seam's vertices are looked up once, here, as slots: the edge tests below
-  // then touch only the seam vertices' own small arrays.
-  std::vector<int>& seam_slot = scratch.seam_slot;
-  std::vector<std::vector<int>>& outgoing = scratch.outgoing;
-  std::vector<PixelVertex>& seam_vertices = scratch.seam_vertices;
-  std::vector<int>& slot_vertex = scratch.slot_vertex;
-  std::vector<int>& local_slot = scratch.local_slot;
-  seam_slot.assign(mesh.positions.size(), -1);
-  seam_vertices.clear();
-  slot_vertex.clear();
-  local_slot.clear();
-  for (const Seam& seam : seams) {
-    for (const PixelVertex& v : seam.vertices) {
-      const int id = vertex(v);
-      int& slot = seam_slot[id];
-      if (slot < 0) {
-        slot = static_cast<int>(seam_vertices.size());
-        seam_vertices.push_back(v);
-        slot_vertex.push_back(id);
+  // The seam triangles go in on one thread while the others, and then it too, look up the
+  // cameras' colours: the seams' part is serial (each triangle's edges are tested against the
+  // triangles before it), and the colours need only the used pixels. A camera's colours are
+  // those of its used pixels in the order their positions were written.
+  Clock::time_point assembled;
+  auto add_seam_triangles = [&] {
+    auto vertex = [&](const PixelVertex& v) { return vertex_offset[v.camera] + scratch.cameras[v.camera].vertex_of_pixel[v.pixel]; };
+    // Directed edges between seam vertices, by slot (a seam vertex's index among them): per slot,
+    // the slots its outgoing edges end at (a vertex has a handful). Other vertices are -1 in
+    // seam_slot. Each seam's vertices are looked up once, here, as slots: the edge tests below
+    // then touch only the seam vertices' own small arrays.
+    std::vector<int>& seam_slot = scratch.seam_slot;
+    std::vector<std::vector<int>>& outgoing = scratch.outgoing;
+    std::vector<PixelVertex>& seam_vertices = scratch.seam_vertices;
+    std::vector<int>& slot_vertex = scratch.slot_vertex;
+    std::vector<int>& local_slot = scratch.local_slot;
+    seam_slot.assign(mesh.positions.size(), -1);
+    seam_vertices.clear();
+    slot_vertex.clear();
+    local_slot.clear();
+    for (const Seam& seam : seams) {
+      for (const PixelVertex& v : seam.vertices) {
+        const int id = vertex(v);
+        int& slot = seam_slot[id];
+        if (slot < 0) {
+          slot = static_cast<int>(seam_vertices.size());
+          seam_vertices.push_back(v);
+          slot_vertex.push_back(id);
+        }
+        local_slot.push_back(slot);
       }
-      local_slot.push_back(slot);
     }
-  }
-  if (outgoing.size() < seam_vertices.size()) outgoing.resize(seam_vertices.size());
-  // The kept triangles' edges from each seam vertex: those of the (up to six) triangles around
-  // its pixel. Each slot's list is its own, so the slots are split over the threads.
-  const int slots = static_cast<int>(seam_vertices.size());
-  const int slot_blocks = std::min(slots, 64);
-  parallel_for(0, slot_blocks, [&](int block) {
-    for (int i = static_cast<int>(static_cast<long>(slots) * block / slot_blocks); i < static_cast<long>(slots) * (block + 1) / slot_blocks; ++i) {
-      outgoing[i].clear();
-      const PixelVertex& sv = seam_vertices[i];
-      const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
-      const int u = sv.pixel % depth_mesh.width, v = sv.pixel / depth_mesh.width;
-      for (int cv = std::max(0, v - 1); cv <= std::min(v, depth_mesh.height - 2); ++cv) {
-        for (int cu = std::max(0, u - 1); cu <= std::min(u, depth_mesh.width - 2); ++cu) {
-          const int cell = cv * depth_mesh.width + cu;
-          for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-            if (!(depth_mesh.triangles[cell] & bit)) continue;
-            int pixels[3];
-            triangle_pixels(cell, depth_mesh.width, bit, pixels);
-            for (int k = 0; k < 3; ++k) {
-              if (pixels[k] != sv.pixel) continue;
-              const int to = seam_slot[vertex({sv.camera, pixels[(k + 1) % 3]})];
-              if (to >= 0) outgoing[i].push_back(to);
+    if (outgoing.size() < seam_vertices.size()) outgoing.resize(seam_vertices.size());
+    // The kept triangles' edges from each seam vertex: those of the (up to six) triangles around
+    // its pixel. Each slot's list is its own, so the slots are split over the threads.
+    const int slots = static_cast<int>(seam_vertices.size());
+    const int slot_blocks = std::min(slots, 64);
+    parallel_for(0, slot_blocks, [&](int block) {
+      for (int i = static_cast<int>(static_cast<long>(slots) * block / slot_blocks); i < static_cast<long>(slots) * (block + 1) / slot_blocks; ++i) {
+        outgoing[i].clear();
+        const PixelVertex& sv = seam_vertices[i];
+        const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
+        const int u = sv.pixel % depth_mesh.width, v = sv.pixel / depth_mesh.width;
+        for (int cv = std::max(0, v - 1); cv <= std::min(v, depth_mesh.height - 2); ++cv) {
+          for (int cu = std::max(0, u - 1); cu <= std::min(u, depth_mesh.width - 2); ++cu) {
+            const int cell = cv * depth_mesh.width + cu;
+            for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+              if (!(depth_mesh.triangles[cell] & bit)) continue;
+              int pixels[3];
+              triangle_pixels(cell, depth_mesh.width, bit, pixels);
+              for (int k = 0; k < 3; ++k) {
+                if (pixels[k] != sv.pixel) continue;
+                const int to = seam_slot[vertex({sv.camera, pixels[(k + 1) % 3]})];
+                if (to >= 0) outgoing[i].push_back(to);
+              }
             }
           }
         }
       }
-    }
-  }, options.num_threads);
-  auto has_edge = [&](int from, int to) {
-    const std::vector<int>& ends = outgoing[from];
-    return std::find(ends.begin(), ends.end(), to) != ends.end();
-  };
-  const int* seam_local_slot = local_slot.data();
-  for (const Seam& seam : seams) {
-    for (const Eigen::Vector3i& local : seam.triangles) {
-      const int a = seam_local_slot[local[0]], b = seam_local_slot[local[1]], c = seam_local_slot[local[2]];
-      if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a)) {
-        ++result.stats.seam_rejected;
-        continue;
+    }, options.num_threads);
+    auto has_edge = [&](int from, int to) {
+      const std::vector<int>& ends = outgoing[from];
+      return std::find(ends.begin(), ends.end(), to) != ends.end();
+    };
+    const int* seam_local_slot = local_slot.data();
+    for (const Seam& seam : seams) {
+      for (const Eigen::Vector3i& local : seam.triangles) {
+        const int a = seam_local_slot[local[0]], b = seam_local_slot[local[1]], c = seam_local_slot[local[2]];
+        if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a)) {
+          ++result.stats.seam_rejected;
+          continue;
+        }
+        mesh.triangles.emplace_back(slot_vertex[a], slot_vertex[b], slot_vertex[c]);
+        outgoing[a].push_back(b);
+        outgoing[b].push_back(c);
+        outgoing[c].push_back(a);
+        ++result.stats.seam_added;
       }
-      mesh.triangles.emplace_back(slot_vertex[a], slot_vertex[b], slot_vertex[c]);
-      outgoing[a].push_back(b);
-      outgoing[b].push_back(c);
-      outgoing[c].push_back(a);
-      ++result.stats.seam_added;
+      seam_local_slot += seam.vertices.size();
     }
-    seam_local_slot += seam.vertices.size();
-  }
-  result.stats.assemble_ms = ms_since(t);
-
-  // Colours, of the vertices only: in the order the positions were written.
-  t = Clock::now();
-  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    assembled = Clock::now();
+  };
+  auto color_camera = [&](int i) {
     const int c = active[i];
     const ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
@@ -434,8 +438,17 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         }
       }
     }
+  };
+  parallel_for(0, static_cast<int>(active.size()) + 1, [&](int item) {
+    if (item == 0) {
+      add_seam_triangles();
+    } else {
+      color_camera(item - 1);
+    }
   }, options.num_threads);
-  result.stats.color_ms = ms_since(t);
+  // Assembly until its seam triangles are in; colour for what of it came after.
+  result.stats.assemble_ms = std::chrono::duration<double, std::milli>(assembled - t).count();
+  result.stats.color_ms = ms_since(assembled);
   return result;
 }
 

@@ -57,7 +57,9 @@ struct ZipperStats {
   double redundancy_ms = 0;  // FRBR at every level, with propagation
   double clipping_ms = 0;    // seams: detection, Delaunay, filtering
   double assemble_ms = 0;    // one mesh with shared vertices
-  double color_ms = 0;       // the colours of the mesh's vertices (only those: most pixels' triangles are removed or clipped)
+  // The colours of the mesh's vertices (only those: most pixels' triangles are removed or
+  // clipped), looked up beside assembly's serial last part: only the time after assembly ends.
+  double color_ms = 0;
   int pairs = 0;
   int redundant_removed = 0;  // full-resolution triangles removed as redundant (incl. propagated)
   int seam_taken = 0;         // triangles replaced by seams

@@ -57,7 +57,7 @@ struct StageTimes {
   double foreground_ms = 0;
   double filter_ms = 0;
   double triangulate_ms = 0;
-  double color_ms = 0;
+  double color_ms = 0;       // zipper: of the vertices only, what of it came after assembly (ZipperStats::color_ms)
   double overlap_ms = 0;     // zipper: coarse levels and overlapping pairs
   double redundancy_ms = 0;  // zipper: coarse-to-fine redundant boundary removal
   double clipping_ms = 0;    // zipper: seams re-triangulated
