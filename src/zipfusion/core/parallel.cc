@@ -143,10 +143,6 @@ ThreadPool& pool() {
 
 int hardware_threads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
-// Below this many items per thread parallel_for hands the items out one at a time; from it on,
-// in contiguous blocks (rows of an image: neighbours share cache lines, and each costs about the same).
-constexpr int kItemsPerThreadForBlocks = 4;
-
 void parallel_for(int begin, int end, const std::function<void(int)>& body, int num_threads) {
   const int count = end - begin;
   if (count <= 0) return;
@@ -158,19 +154,6 @@ void parallel_for(int begin, int end, const std::function<void(int)>& body, int 
   }
   std::vector<std::function<void()>> blocks;
   blocks.reserve(threads);
-  if (count < kItemsPerThreadForBlocks * threads) {
-    // A few items, such as cameras, of unequal cost: each thread takes the next when it is done.
-    // Contiguous halves gave one thread the two largest of four cameras (the ownership scores of
-    // samba-4cam took 1.85 ms on two threads, against 1.6 ms so).
-    std::atomic<int> next{begin};
-    for (int block = 0; block < threads; ++block) {
-      blocks.emplace_back([&body, &next, end] {
-        for (int i = next.fetch_add(1, std::memory_order_relaxed); i < end; i = next.fetch_add(1, std::memory_order_relaxed)) body(i);
-      });
-    }
-    workers.run(blocks);
-    return;
-  }
   for (int block = 0; block < threads; ++block) {
     const int lo = begin + static_cast<int>(static_cast<long long>(count) * block / threads);
     const int hi = begin + static_cast<int>(static_cast<long long>(count) * (block + 1) / threads);

@@ -10,9 +10,8 @@ namespace zipfusion {
 int hardware_threads();
 
 //! Calls body(i) for every i in [begin, end), spread over up to num_threads threads
-//! (0 = hardware_threads()). Fewer than four indices per thread (cameras, camera pairs) are handed
-//! out one at a time, to whichever thread is free; more are split into contiguous blocks, one per
-//! thread. Which thread runs an index is not fixed: each body call must write only its own output. Blocks until all calls return; the first exception
+//! (0 = hardware_threads()). Indices are split into contiguous blocks, one per thread; each
+//! body call must write only its own output. Blocks until all calls return; the first exception
 //! thrown by a body is rethrown here after all threads have stopped.
 void parallel_for(int begin, int end, const std::function<void(int)>& body, int num_threads = 0);
 
