@@ -303,8 +303,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const PixelBox box = depth_mesh.box();
     // Used pixels numbered in pixel order, written as they are numbered; each row of cells'
     // triangles written (in cell order) as soon as the two rows of pixels it joins are numbered,
-    // so that their numbers are read back from the cache (numbering the whole image first and
-    // then writing every triangle read them from memory: a third of this loop's time).
+    // so that their numbers are read back from the cache (numbering the whole box first, then
+    // writing the triangles, read them back from memory: assembly took 2.6–2.7 ms on one thread
+    // for samba-4cam, against 2.3–2.4 ms so).
     const int width = depth_mesh.width;
     int vertex = 0;
     auto number_row = [&](int v) {
