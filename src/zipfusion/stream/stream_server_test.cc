@@ -283,10 +283,18 @@ TEST_F(StreamServerTest, AStalledClientSlowsNobody) {
     });
   }
   // 200 frames of 100 kB (a frame set at level of detail 1) at 60 per second: 20 MB, far more
-  // than a stalled socket's buffers hold.
+  // than a stalled socket's buffers hold. A frame is sent only once every reader has all but the
+  // last 4 of those before it (10 s at most): a reader thread starved of the CPU by other tests
+  // (make test runs two at once on two cores) would otherwise fall more than the 8 waiting frames
+  // behind, and be skipped as a slow client, rightly. If the stalled client held up the others,
+  // they would stop receiving and the wait would run out.
   const std::string frame = frame_message("{}", std::string(100 * 1024, 'm'));
   double longest_broadcast_ms = 0;
+  const auto readers_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   for (int k = 0; k < kFrames; ++k) {
+    for (int i = 0; i < kReaders; ++i) {
+      while (received[i] < k - 4 && std::chrono::steady_clock::now() < readers_deadline) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     const auto t0 = std::chrono::steady_clock::now();
     server.broadcast(frame);
     longest_broadcast_ms = std::max(longest_broadcast_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
