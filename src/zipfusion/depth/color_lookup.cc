@@ -64,17 +64,10 @@ void lookup_colors(const DepthMesh& mesh, const CameraModel& camera, const Color
   const ColorLookup lookup(camera, color);
   if (!lookup.has_image()) return;
   const PixelBox box = mesh.box();
-  float x[ColorLookup::kRowChunk], y[ColorLookup::kRowChunk];
   for (int v = box.v0; v < box.v1; ++v) {
     const float* depth = mesh.depth.data() + static_cast<size_t>(v) * mesh.width;
     Rgb8* colors = out.data() + static_cast<size_t>(v) * mesh.width;
-    for (int u0 = box.u0; u0 < box.u1; u0 += ColorLookup::kRowChunk) {
-      const int chunk = std::min(ColorLookup::kRowChunk, box.u1 - u0);
-      lookup.project_row(v, u0, chunk, depth + u0, x, y);
-      for (int i = 0; i < chunk; ++i) {
-        if (depth[u0 + i] > 0) colors[u0 + i] = lookup.sample(x[i], y[i]);
-      }
-    }
+    lookup.for_each_color_in_row(v, box.u0, box.u1, depth, [&](int u) { return depth[u] > 0; }, [&](int u, Rgb8 c) { colors[u] = c; });
   }
 }
 

@@ -4,6 +4,7 @@
 //! colour camera (color_from_depth, colour intrinsics and distortion) and the colour image is
 //! sampled bilinearly. Points outside the colour image, and cameras without colour, get grey.
 
+#include <algorithm>
 #include <vector>
 
 #include "zipfusion/core/image.h"
@@ -66,6 +67,21 @@ class ColorLookup {
   //! (docs/profile.md).
   void project_row(int v, int u0, int count, const float* z, float* x, float* y) const;
   Rgb8 sample(float x, float y) const { return sample_bilinear(*image_, x, y); }
+
+  //! The two steps over pixels u0 ≤ u < u1 of row v, `depth_row` the row's depths: calls
+  //! emit(u, colour) for each u with keep(u) (whose depth must be > 0), in order. Only where
+  //! has_image().
+  template <typename Keep, typename Emit>
+  void for_each_color_in_row(int v, int u0, int u1, const float* depth_row, Keep&& keep, Emit&& emit) const {
+    float x[kRowChunk], y[kRowChunk];
+    for (int first = u0; first < u1; first += kRowChunk) {
+      const int count = std::min(kRowChunk, u1 - first);
+      project_row(v, first, count, depth_row + first, x, y);
+      for (int i = 0; i < count; ++i) {
+        if (keep(first + i)) emit(first + i, sample(x[i], y[i]));
+      }
+    }
+  }
 
  private:
   PixelRays rays_;

@@ -161,17 +161,23 @@ void for_each_nonempty_cell(const std::vector<std::uint8_t>& triangles, F&& f) {
 }
 
 //! Calls f(pixels) with the three pixel indices (as triangle_pixels gives them) of every existing
-//! triangle of `mesh`, in cell order.
+//! triangle in cells first..first+count−1 of `mesh`, in cell order.
 template <typename F>
-void for_each_triangle(const DepthMesh& mesh, F&& f) {
-  for_each_nonempty_cell(mesh.triangles, [&](int cell, std::uint8_t bits) {
+void for_each_triangle_in_cells(const DepthMesh& mesh, int first, int count, F&& f) {
+  for_each_nonzero_byte(mesh.triangles.data() + first, count, [&](int i, std::uint8_t bits) {
     for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
       if (!(bits & bit)) continue;
       int pixels[3];
-      triangle_pixels(cell, mesh.width, bit, pixels);
+      triangle_pixels(first + i, mesh.width, bit, pixels);
       f(pixels);
     }
   });
+}
+
+//! The same for every existing triangle of `mesh`.
+template <typename F>
+void for_each_triangle(const DepthMesh& mesh, F&& f) {
+  for_each_triangle_in_cells(mesh, 0, static_cast<int>(mesh.triangles.size()), f);
 }
 
 //! Triangulates `depth_m` (metres, 0 = none) of a camera into `out`, reusing its buffers.

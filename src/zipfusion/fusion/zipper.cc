@@ -322,15 +322,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (int v = box.v0; v < box.v1; ++v) {
       if (v + 1 < box.v1) number_row(v + 1);
       // Triangles lie in the cells of the box but its last row and column.
-      const int row = v * width;
-      for_each_nonzero_byte(depth_mesh.triangles.data() + row + box.u0, std::min(box.u1, width - 1) - box.u0, [&](int k, std::uint8_t bits) {
-        const int cell = row + box.u0 + k;
-        for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-          if (!(bits & bit)) continue;
-          int p[3];
-          triangle_pixels(cell, width, bit, p);
-          *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
-        }
+      for_each_triangle_in_cells(depth_mesh, v * width + box.u0, std::min(box.u1, width - 1) - box.u0, [&](const int* p) {
+        *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
       });
     }
   }, options.num_threads);
@@ -427,17 +420,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       return;
     }
     const PixelBox box = depth_mesh.box();
-    float x[ColorLookup::kRowChunk], y[ColorLookup::kRowChunk];
     for (int v = box.v0; v < box.v1; ++v) {
-      const int row = v * depth_mesh.width;
-      for (int u0 = box.u0; u0 < box.u1; u0 += ColorLookup::kRowChunk) {
-        const int chunk = std::min(ColorLookup::kRowChunk, box.u1 - u0);
-        lookup.project_row(v, u0, chunk, depth_mesh.depth.data() + row + u0, x, y);
-        const std::uint8_t* used = s.used.data() + row + u0;
-        for (int k = 0; k < chunk; ++k) {
-          if (used[k]) *out++ = lookup.sample(x[k], y[k]);
-        }
-      }
+      const std::uint8_t* used = s.used.data() + v * depth_mesh.width;
+      lookup.for_each_color_in_row(v, box.u0, box.u1, depth_mesh.depth.data() + v * depth_mesh.width, [&](int u) { return used[u] != 0; },
+                                   [&](int, Rgb8 color) { *out++ = color; });
     }
   };
   parallel_for(0, static_cast<int>(active.size()) + 1, [&](int item) {
