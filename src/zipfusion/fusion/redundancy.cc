@@ -18,24 +18,57 @@ void enqueue(FrbrScratch& s, int id) {
 }
 
 
+// A candidate of a sweep: a triangle of a, its centre's pixel coordinates in a, and the centre
+// as b sees it.
+struct SweepTest {
+  int id;
+  float a_x, a_y;
+  ViewPoint centre;
+};
+
+// How many of a sweep's tests go through each pass together (a few kilobytes: they stay in the
+// first-level cache between the passes).
+constexpr int kSweepBlock = 128;
+
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
+// The tests go in blocks, each in three passes: the candidates' centres and projections, then
+// the ownership test, then the search for b's triangles near those b owns. Each pass's reads
+// (a's depth, then the score maps and b's depth near the projection) miss the cache at
+// scattered boundary pixels; one test after another, each waited on the last one's misses,
+// while within a pass they are independent and overlap. The tests read only the bit matrices
+// as the sweep found them (its removals are cleared after it), so the passes give the removals
+// a single loop gave, in the same order.
 int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   const Rigid3f b_from_a_camera = b_from_a(a, b);
   s.removals.clear();
-  for (int id : s.worklist) {
-    const int cell = cell_of(id);
-    const TriangleBit bit = bit_of(id);
-    if (!(mesh.triangles[cell] & bit)) continue;
-    const int v = cell / mesh.width, u = cell - v * mesh.width;
-    if (!mask.covers_at(u, v, a.level)) continue;
-    if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
-    const ViewPoint centre = project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, u, v, bit));
-    // The centre lies a third (upper) or two thirds (lower) into the cell.
-    const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
-    const float x = static_cast<float>(u) + offset, y = static_cast<float>(v) + offset;
-    if (owner_is_other(a, x, y, b, centre, 2 * distance) && has_triangle_near(b, centre, distance)) s.removals.push_back(id);
+  SweepTest tests[kSweepBlock];
+  int owned[kSweepBlock];
+  const size_t count = s.worklist.size();
+  for (size_t first = 0; first < count; first += kSweepBlock) {
+    const size_t last = std::min(count, first + kSweepBlock);
+    int n = 0;
+    for (size_t k = first; k < last; ++k) {
+      const int id = s.worklist[k];
+      const int cell = cell_of(id);
+      const TriangleBit bit = bit_of(id);
+      if (!(mesh.triangles[cell] & bit)) continue;
+      const int v = cell / mesh.width, u = cell - v * mesh.width;
+      if (!mask.covers_at(u, v, a.level)) continue;
+      if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
+      // The centre lies a third (upper) or two thirds (lower) into the cell.
+      const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
+      tests[n++] = {id, static_cast<float>(u) + offset, static_cast<float>(v) + offset,
+                    project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, u, v, bit))};
+    }
+    int m = 0;
+    for (int k = 0; k < n; ++k) {
+      if (owner_is_other(a, tests[k].a_x, tests[k].a_y, b, tests[k].centre, 2 * distance)) owned[m++] = k;
+    }
+    for (int k = 0; k < m; ++k) {
+      if (has_triangle_near(b, tests[owned[k]].centre, distance)) s.removals.push_back(tests[owned[k]].id);
+    }
   }
   for (int id : s.worklist) s.queued.clear(id);  // queued by the previous pass
   s.next.clear();
