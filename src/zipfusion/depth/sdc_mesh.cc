@@ -37,13 +37,14 @@ int DepthMesh::triangle_count() const {
   return count;
 }
 
-void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
-                     DepthMesh& out) {
-  const int width = depth_m.width, height = depth_m.height;
+namespace {
+
+// triangulate_sdc once `out.depth` holds the depth image, width × height.
+void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
+                           DepthMesh& out) {
   out.width = width;
   out.height = height;
-  const int count = static_cast<int>(depth_m.size());
-  out.depth.assign(depth_m.data.begin(), depth_m.data.end());
+  const int count = width * height;
   out.triangles.assign(count, 0);
   out.rays = PixelRays(k, world_from_depth);
   PixelBox box{width, height, 0, 0};
@@ -64,6 +65,21 @@ void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rig
     sdc_row(out.depth.data() + static_cast<size_t>(v) * width + box.u0, width, u1 - box.u0, max_jump,
             out.triangles.data() + static_cast<size_t>(v) * width + box.u0);
   }
+}
+
+}  // namespace
+
+void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
+                     DepthMesh& out) {
+  out.depth.assign(depth_m.data.begin(), depth_m.data.end());
+  triangulate_own_depth(depth_m.width, depth_m.height, k, world_from_depth, options, out);
+}
+
+void triangulate_sdc_taking_depth(Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
+                                  DepthMesh& out) {
+  out.depth.swap(depth_m.data);
+  depth_m.data.resize(out.depth.size());  // the mesh's previous buffer, of the same size after the first frame
+  triangulate_own_depth(depth_m.width, depth_m.height, k, world_from_depth, options, out);
 }
 
 void append_depth_mesh(const DepthMesh& mesh, const std::vector<Rgb8>& colors, TriangleMesh& out, std::vector<int>& vertex_of_pixel) {

@@ -183,6 +183,11 @@ void for_each_triangle(const DepthMesh& mesh, F&& f) {
 //! Triangulates `depth_m` (metres, 0 = none) of a camera into `out`, reusing its buffers.
 void triangulate_sdc(const Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
                      DepthMesh& out);
+//! The same, but the mesh takes `depth_m`'s buffer instead of copying it (a Kinect frame set's
+//! copies were 4.9 MB), and `depth_m` gets the mesh's previous one, of the same size: its
+//! contents are unspecified, for a caller that overwrites every pixel of it next frame.
+void triangulate_sdc_taking_depth(Image<float>& depth_m, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
+                                  DepthMesh& out);
 
 //! Appends the existing triangles of `mesh` to `out` with vertices compacted: each pixel used by a
 //! triangle becomes one vertex, shared by its triangles. `colors` holds one colour per pixel

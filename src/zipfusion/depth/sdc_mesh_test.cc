@@ -88,6 +88,26 @@ TEST(Sdc, FlatPatchIsFullyTriangulated) {
   EXPECT_EQ(mesh.triangle_count(), 12);
 }
 
+// Taking the depth image's buffer gives the mesh the copy would give, frame after frame (the
+// second frame reuses the buffers the first swapped), and hands back a buffer of the image's size.
+TEST(Sdc, TakingTheDepthGivesTheSameMeshAsCopyingIt) {
+  const Intrinsics k{.width = 4, .height = 3, .fx = 100, .fy = 100, .cx = 1.5, .cy = 1.0};
+  DepthMesh taken;
+  for (const Image<float>& frame : {depth_from({{2, 2, 2, 2.05f}, {2, 0, 2, 2}, {2, 2, 2.029f, 2}}),
+                                    depth_from({{0, 0, 3, 3}, {3, 3, 3, 3}, {3, 3.1f, 3, 0}})}) {
+    const DepthMesh copied = triangulate(frame);
+    Image<float> depth = frame;
+    triangulate_sdc_taking_depth(depth, k, Rigid3f::Identity(), {.max_depth_jump_m = 0.03}, taken);
+    EXPECT_EQ(taken.depth, frame.data);
+    EXPECT_EQ(triangles_of(taken), triangles_of(copied));
+    EXPECT_EQ(taken.triangles, copied.triangles);
+    EXPECT_EQ(taken.box().u0, copied.box().u0);
+    EXPECT_EQ(taken.box().v1, copied.box().v1);
+    EXPECT_EQ(depth.data.size(), frame.data.size());
+    EXPECT_EQ(depth.width, frame.width);
+  }
+}
+
 TEST(Sdc, MissingDepthAndStepsRemoveExactlyTheirTriangles) {
   // Pixel 5 has no depth; pixel 3 stands 5 cm behind its neighbours (a step); pixel 10 is 2.9 cm
   // off, within the 3 cm threshold.

@@ -120,8 +120,10 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });
   }
   stage(result.times.triangulate_ms, [&](int c, CameraState& s) {
-    const Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;
-    triangulate_sdc(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), options_.sdc, s.mesh);
+    // The depth image is not needed after this: the mesh takes its buffer (extract_foreground and
+    // the filter write every pixel of theirs next frame).
+    Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;
+    triangulate_sdc_taking_depth(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), options_.sdc, s.mesh);
   });
   auto color_of = [&](int c) { return frames.cameras[c].has_color ? &frames.cameras[c].color : nullptr; };
   if (options_.mode == ReconstructMode::kSeparate) {
