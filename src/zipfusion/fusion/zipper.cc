@@ -261,7 +261,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const int c = active[i];
     ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
-    s.used.assign(depth_mesh.triangles.size(), 0);
+    // Only the box is read, and every pixel of it is written below: no clearing.
+    s.used.resize(depth_mesh.triangles.size());
     s.vertex_of_pixel.resize(depth_mesh.triangles.size());
     const PixelBox box = depth_mesh.box();
     int triangles = 0;
