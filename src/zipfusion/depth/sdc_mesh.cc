@@ -37,15 +37,31 @@ int DepthMesh::triangle_count() const {
   return count;
 }
 
+void reset_depth_mesh(DepthMesh& mesh, int width, int height, bool clear_depth) {
+  const size_t count = static_cast<size_t>(width) * height;
+  if (mesh.width != width || mesh.height != height || mesh.triangles.size() != count || (clear_depth && mesh.depth.size() != count)) {
+    mesh.width = width;
+    mesh.height = height;
+    if (clear_depth) mesh.depth.assign(count, 0.0f);
+    mesh.triangles.assign(count, 0);
+  } else {
+    const PixelBox box = mesh.box();
+    for (int v = box.v0; v < box.v1; ++v) {
+      const size_t row = static_cast<size_t>(v) * width;
+      if (clear_depth) std::fill(mesh.depth.begin() + row + box.u0, mesh.depth.begin() + row + box.u1, 0.0f);
+      std::fill(mesh.triangles.begin() + row + box.u0, mesh.triangles.begin() + row + box.u1, 0);
+    }
+  }
+  mesh.depth_box = {};
+}
+
 namespace {
 
-// triangulate_sdc once `out.depth` holds the depth image, width × height.
+// triangulate_sdc once `out.depth` holds the depth image, width × height (`out`'s triangles and
+// depth box still those of its previous image).
 void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
                            DepthMesh& out) {
-  out.width = width;
-  out.height = height;
-  const int count = width * height;
-  out.triangles.assign(count, 0);
+  reset_depth_mesh(out, width, height, false);
   out.rays = PixelRays(k, world_from_depth);
   PixelBox box{width, height, 0, 0};
   for (int v = 0; v < height; ++v) {

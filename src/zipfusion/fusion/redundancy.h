@@ -24,6 +24,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "zipfusion/core/camera.h"
@@ -54,6 +55,9 @@ struct OwnershipScore {
   int stride = 0;  // width + 2
   int level = 0;
   float width_f = 0, height_f = 0;  // width and height as floats, for the lookup's range test
+  // Rows of `cells` (counted from the border row) outside which every cell is 0: the next frame
+  // clears only these.
+  std::pair<int, int> written_rows{0, 0};
 
   //! Cell (u, v), u in [−1, width], v in [−1, height] (the border reads 0).
   float& cell(int u, int v) { return cells[static_cast<size_t>(v + 1) * stride + u + 1]; }
