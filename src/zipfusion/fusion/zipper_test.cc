@@ -442,6 +442,46 @@ TEST(Redundancy, CoarseLevelPointsAreTheirFinePixelsPoints) {
   }
 }
 
+// Meshes, coarse levels and ownership scores are reused from frame to frame and cleared only
+// where the previous frame wrote: after a frame whose person filled a large box, a frame with a
+// small one elsewhere must come out exactly as it does in fresh buffers.
+TEST(Redundancy, ReusedBuffersGiveWhatFreshOnesGive) {
+  const Intrinsics k{.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  std::mt19937 random(3);
+  std::normal_distribution<float> noise(0.0f, 0.005f);
+  auto sheet = [&](int u0, int u1, int v0, int v1) {
+    Image<float> depth(k.width, k.height, 0.0f);
+    for (int v = v0; v < v1; ++v) {
+      for (int u = u0; u < u1; ++u) depth(u, v) = 2.5f + noise(random);
+    }
+    return depth;
+  };
+  const Image<float> large = sheet(5, 150, 3, 115), small = sheet(100, 130, 70, 100);
+  const SmoothnessOptions smoothness{.window_cells = 13, .exponent = 12, .same_surface_m = 0.03f};
+  DepthMesh reused_mesh, reused_coarse, fresh_mesh, fresh_coarse;
+  OwnershipScore reused_smoothness, reused_border, fresh_smoothness, fresh_border;
+  for (const Image<float>* depth : {&large, &small}) {
+    triangulate_sdc(*depth, k, Rigid3f::Identity(), {}, reused_mesh);
+    downsample_mesh(reused_mesh, 1, 0.06f, reused_coarse);
+    compute_smoothness(reused_mesh, k, 0, smoothness, reused_smoothness);
+    compute_border_distance(reused_mesh, 0, 2, reused_border);
+  }
+  triangulate_sdc(small, k, Rigid3f::Identity(), {}, fresh_mesh);
+  downsample_mesh(fresh_mesh, 1, 0.06f, fresh_coarse);
+  compute_smoothness(fresh_mesh, k, 0, smoothness, fresh_smoothness);
+  compute_border_distance(fresh_mesh, 0, 2, fresh_border);
+  EXPECT_EQ(reused_mesh.triangles, fresh_mesh.triangles);
+  EXPECT_EQ(reused_coarse.depth, fresh_coarse.depth);
+  EXPECT_EQ(reused_coarse.triangles, fresh_coarse.triangles);
+  EXPECT_EQ(reused_smoothness.cells, fresh_smoothness.cells);
+  EXPECT_EQ(reused_border.cells, fresh_border.cells);
+  // Not a vacuous comparison: the small sheet has triangles and scores, and the large one's are gone.
+  EXPECT_GT(fresh_mesh.triangle_count(), 1000);
+  EXPECT_GT(fresh_smoothness.cell(115, 85), 0.0f);
+  EXPECT_EQ(reused_smoothness.cell(20, 20), 0.0f);
+  EXPECT_EQ(reused_coarse.triangles[10 * reused_coarse.width + 10], 0);
+}
+
 TEST(Zipper, PairsAreScheduledWithoutSharingACamera) {
   const std::vector<std::pair<int, int>> ring = {{0, 1}, {1, 2}, {2, 3}, {0, 3}, {0, 2}};
   const auto rounds = schedule_pairs(ring);
