@@ -1,8 +1,10 @@
 #include "zipfusion/fusion/zipper.h"
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <algorithm>
+#include <thread>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
@@ -217,48 +219,26 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       for (int id : taken[pair_index].taken_b) scratch.cameras[b].taken_round[id] = static_cast<std::uint8_t>(r + 1);
     }, options.num_threads);
   }
-  // Longest first, each to the least loaded thread.
-  const int stitch_threads = std::max(1, std::min(static_cast<int>(taken.size()), options.num_threads > 0 ? options.num_threads : hardware_threads()));
+  const Clock::time_point taken_at = Clock::now();
+
+  // The seams are triangulated while the kept triangles are counted and written (assembly): the
+  // output's vertices and kept triangles need only the seams' points, not their triangles. The
+  // threads take tasks from one list in turn: each camera's count, then the seams, longest
+  // first, then each camera's writing. The seams are a few long tasks of unequal length (on
+  // samba-4cam a thread was left without one for about a tenth of the stitching), and the
+  // writing fills those gaps. Kept and seam triangles share pixel vertices; each camera's part is
+  // written at offsets from a prefix sum of the counts, which the last count to finish forms.
+  TriangleMesh& mesh = result.mesh;
+  std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
+  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
   std::vector<int> by_size(taken.size());
   for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
   std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
-  std::vector<std::vector<int>> per_thread(stitch_threads);
-  std::vector<size_t> load(stitch_threads, 0);
-  for (int i : by_size) {
-    const int least = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
-    per_thread[least].push_back(i);
-    load[least] += taken[i].seam.vertices.size();
-  }
-  parallel_for(0, stitch_threads, [&](int thread) {
-    for (int i : per_thread[thread]) {
-      const auto [a, b] = result.pairs[i];
-      stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
-                  cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
-                  KeptAt{scratch.cameras[a].taken_round.data(), round_of_pair[i]}, KeptAt{scratch.cameras[b].taken_round.data(), round_of_pair[i]},
-                  taken[i]);
-    }
-  }, stitch_threads);
-  std::vector<Seam> seams(taken.size());
-  for (size_t i = 0; i < taken.size(); ++i) {
-    const auto [a, b] = result.pairs[i];
-    for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
-    for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
-    seams[i] = std::move(taken[i].seam);
-    result.stats.seam_taken += seams[i].triangles_taken;
-  }
-  result.stats.clipping_ms = ms_since(t);
-
-  // Assembly: kept triangles and seam triangles over shared pixel vertices, each camera's part
-  // written by its own thread at offsets from a prefix sum. A seam triangle may not reuse a
-  // directed edge that a kept (or earlier seam) triangle already has: that would put it on the
-  // same side of the edge as that triangle, overlapping it, and make the edge non-manifold. Only
-  // edges between seam vertices need checking.
-  t = Clock::now();
-  TriangleMesh& mesh = result.mesh;
+  const int active_count = static_cast<int>(active.size());
+  std::atomic<int> counted{0};
+  std::atomic<bool> offsets_ready{false};
   // Each camera's used pixels (by kept triangles or seams) and triangles, counted.
-  std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
-  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
-    const int c = active[i];
+  auto count_camera = [&](int c) {
     ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     // Only the box is read, and every pixel of it is written below: no clearing.
@@ -271,8 +251,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       triangles += count_triangles(depth_mesh.triangles.data() + row + box.u0, box.u1 - box.u0);
       mark_used_pixels_row(depth_mesh.triangles.data(), depth_mesh.width, v, box.u0, box.u1, s.used.data() + row);
     }
-    for (const Seam& seam : seams) {
-      for (const PixelVertex& v : seam.vertices) {
+    for (const TakenSeam& seam : taken) {
+      for (const PixelVertex& v : seam.seam.vertices) {
         if (v.camera == c) s.used[v.pixel] = 1;
       }
     }
@@ -280,24 +260,28 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (int v = box.v0; v < box.v1; ++v) vertices += count_used_row(s.used.data() + v * depth_mesh.width + box.u0, box.u1 - box.u0);
     vertex_count[c] = vertices;
     triangle_count[c] = triangles;
-  }, options.num_threads);
-  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
-  for (int c = 0; c < camera_count; ++c) {
-    vertex_offset[c + 1] = vertex_offset[c] + vertex_count[c];
-    triangle_offset[c + 1] = triangle_offset[c] + triangle_count[c];
-  }
-  size_t seam_triangles = 0;
-  for (const Seam& seam : seams) seam_triangles += seam.triangles.size();
-  // Room for the seam triangles first: reserving after the resize moved every kept triangle.
-  mesh.positions.clear();
-  mesh.colors.clear();
-  mesh.triangles.clear();
-  mesh.triangles.reserve(triangle_offset[camera_count] + seam_triangles);
-  mesh.triangles.resize(triangle_offset[camera_count]);
-  mesh.positions.resize(vertex_offset[camera_count]);
-  mesh.colors.resize(vertex_offset[camera_count]);
-  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
-    const int c = active[i];
+    if (counted.fetch_add(1, std::memory_order_acq_rel) + 1 < active_count) return;
+    for (int k = 0; k < camera_count; ++k) {
+      vertex_offset[k + 1] = vertex_offset[k] + vertex_count[k];
+      triangle_offset[k + 1] = triangle_offset[k] + triangle_count[k];
+    }
+    // Room for the seam triangles first (reserving after the resize moved every kept triangle):
+    // a triangulation of n points has fewer than 2n triangles.
+    size_t seam_bound = 0;
+    for (const TakenSeam& seam : taken) seam_bound += 2 * seam.seam.vertices.size();
+    mesh.positions.clear();
+    mesh.colors.clear();
+    mesh.triangles.clear();
+    mesh.triangles.reserve(triangle_offset[camera_count] + seam_bound);
+    mesh.triangles.resize(triangle_offset[camera_count]);
+    mesh.positions.resize(vertex_offset[camera_count]);
+    mesh.colors.resize(vertex_offset[camera_count]);
+    offsets_ready.store(true, std::memory_order_release);
+  };
+  auto write_camera = [&](int c) {
+    // Every count was taken before this task (they come first in the list) and is running: the
+    // wait is short, if any.
+    while (!offsets_ready.load(std::memory_order_acquire)) std::this_thread::yield();
     ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     const int first = vertex_offset[c];
@@ -327,7 +311,54 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         *out++ = Eigen::Vector3i(first + s.vertex_of_pixel[p[0]], first + s.vertex_of_pixel[p[1]], first + s.vertex_of_pixel[p[2]]);
       });
     }
-  }, options.num_threads);
+  };
+  std::vector<Clock::time_point> stitched_at(taken.size(), taken_at);
+  auto stitch = [&](int i) {
+    const auto [a, b] = result.pairs[i];
+    stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
+                cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
+                KeptAt{scratch.cameras[a].taken_round.data(), round_of_pair[i]}, KeptAt{scratch.cameras[b].taken_round.data(), round_of_pair[i]},
+                taken[i]);
+    stitched_at[i] = Clock::now();
+  };
+  const int seam_count = static_cast<int>(taken.size());
+  const int task_count = 2 * active_count + seam_count;
+  const int task_threads = std::max(1, std::min(task_count, options.num_threads > 0 ? options.num_threads : hardware_threads()));
+  std::atomic<int> next_task{0};
+  parallel_for(0, task_threads, [&](int) {
+    for (int k; (k = next_task.fetch_add(1)) < task_count;) {
+      if (k < active_count) {
+        count_camera(active[k]);
+      } else if (k < active_count + seam_count) {
+        stitch(by_size[k - active_count]);
+      } else {
+        write_camera(active[k - active_count - seam_count]);
+      }
+    }
+  }, task_threads);
+  if (active_count == 0) {  // no count ran to size the output
+    mesh.positions.clear();
+    mesh.colors.clear();
+    mesh.triangles.clear();
+  }
+  std::vector<Seam> seams(taken.size());
+  for (size_t i = 0; i < taken.size(); ++i) {
+    const auto [a, b] = result.pairs[i];
+    for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
+    for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
+    seams[i] = std::move(taken[i].seam);
+    result.stats.seam_taken += seams[i].triangles_taken;
+  }
+  // Clipping ends with the last seam; the writing still running then, and what follows, is
+  // assembly's (and the counting before, a few percent of it, clipping's).
+  Clock::time_point clipped_at = taken_at;
+  for (const Clock::time_point at : stitched_at) clipped_at = std::max(clipped_at, at);
+  result.stats.clipping_ms = std::chrono::duration<double, std::milli>(clipped_at - t).count();
+  t = clipped_at;
+
+  // A seam triangle may not reuse a directed edge that a kept (or earlier seam) triangle already
+  // has: that would put it on the same side of the edge as that triangle, overlapping it, and
+  // make the edge non-manifold. Only edges between seam vertices need checking.
   // The seam triangles go in on one thread while the others, and then it too, look up the
   // cameras' colours: the seams' part is serial (each triangle's edges are tested against the
   // triangles before it), and the colours need only the used pixels. A camera's colours are

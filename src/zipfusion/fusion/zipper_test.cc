@@ -140,6 +140,25 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
   EXPECT_GT(vertices_of_color[scene.colors[1].data[0].r], 1000);
 }
 
+// The output mesh is built in the previous frame's buffers: a frame set in which every camera is
+// missing gives an empty mesh, and one with a single camera that camera's mesh alone.
+TEST(Zipper, ReusedOutputHoldsOnlyThisFramesCameras) {
+  Scene scene = two_views_of(wall_mesh());
+  std::vector<ZipperCamera> both, none(2), first(2);
+  for (size_t i = 0; i < 2; ++i) both.push_back({&scene.meshes[i], &scene.colors[i], &scene.models[i]});
+  first[0] = both[0];
+  ZipperScratch scratch;
+  ZipperResult result = zipper_meshes(both, {}, scratch);
+  ASSERT_GT(result.mesh.triangles.size(), 10000u);
+  result = zipper_meshes(none, {}, scratch, std::move(result.mesh));
+  EXPECT_TRUE(result.mesh.positions.empty());
+  EXPECT_TRUE(result.mesh.colors.empty());
+  EXPECT_TRUE(result.mesh.triangles.empty());
+  result = zipper_meshes(first, {}, scratch, std::move(result.mesh));
+  EXPECT_EQ(static_cast<int>(result.mesh.triangles.size()), scene.meshes[0].triangle_count());
+  EXPECT_EQ(result.mesh.colors.size(), result.mesh.positions.size());
+}
+
 TEST(Zipper, VertexColoursAreSampledWhereTheirCameraSeesThem) {
   // The wall of the two-plane test; camera 0's colour camera sits 2.5 cm to the side of its depth
   // camera (as a Kinect's) and sees a gradient, 4 levels a pixel, camera 1 has no
