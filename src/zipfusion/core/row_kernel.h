@@ -7,8 +7,23 @@
 //! others cannot; the libraries, where the row kernels are, are compiled with -ffp-contract=off,
 //! so each clone computes the same floats, and the same meshes come out on every CPU.
 
+#include <bit>
+#include <cstdint>
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define ZF_ROW_KERNEL __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define ZF_ROW_KERNEL
 #endif
+
+namespace zipfusion {
+
+//! Element function for row kernels: `if_set` where `condition` (0 or 1) is 1, else `otherwise`,
+//! chosen by a bit mask. A product would turn 0·inf into NaN, and GCC vectorises neither a select
+//! on a comparison that may trap (for AVX2 and SSE) nor a branch.
+inline float select_if(unsigned condition, float if_set, float otherwise) {
+  const std::uint32_t mask = 0u - condition;
+  return std::bit_cast<float>((std::bit_cast<std::uint32_t>(if_set) & mask) | (std::bit_cast<std::uint32_t>(otherwise) & ~mask));
+}
+
+}  // namespace zipfusion

@@ -1,19 +1,12 @@
 #include "zipfusion/depth/color_lookup.h"
 
 #include <algorithm>
-#include <bit>
-#include <cstdint>
 #include <cstring>
 
 #include "zipfusion/core/row_kernel.h"
 
 namespace zipfusion {
 namespace {
-
-// `if_set` where the mask is all ones, `otherwise` where it is zero.
-inline float select_bits(std::uint32_t mask, float if_set, float otherwise) {
-  return std::bit_cast<float>((std::bit_cast<std::uint32_t>(if_set) & mask) | (std::bit_cast<std::uint32_t>(otherwise) & ~mask));
-}
 
 // A pinhole colour camera's coordinates of the points z·(ray + u·ray_du) + origin, u = u0 + i:
 // the operations of PixelRays::point and project_pinhole in their order, so the floats are
@@ -29,12 +22,12 @@ ZF_ROW_KERNEL void project_pinhole_row(const Eigen::Vector3f& row_ray, const Eig
     const float px = ox + z[i] * (rx + u * dx);
     const float py = oy + z[i] * (ry + u * dy);
     const float pz = oz + z[i] * (rz + u * dz);
-    // Divided in every lane, then selected with a bit mask: GCC does not vectorise a division
-    // under the condition, nor (for AVX2 and SSE) a select on a comparison that may trap.
+    // Divided in every lane, then selected (select_if): GCC does not vectorise a division under
+    // the condition.
     const float xi = fx * px / pz + cx, yi = fy * py / pz + cy;
-    const std::uint32_t behind = 0u - static_cast<std::uint32_t>(!(pz > 0.0f));
-    x[i] = select_bits(behind, -1.0f, xi);
-    y[i] = select_bits(behind, -1.0f, yi);
+    const unsigned behind = !(pz > 0.0f);
+    x[i] = select_if(behind, -1.0f, xi);
+    y[i] = select_if(behind, -1.0f, yi);
   }
 }
 

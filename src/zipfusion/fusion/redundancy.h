@@ -29,6 +29,7 @@
 
 #include "zipfusion/core/camera.h"
 #include "zipfusion/core/geometry.h"
+#include "zipfusion/core/row_kernel.h"
 #include "zipfusion/depth/sdc_mesh.h"
 
 namespace zipfusion {
@@ -101,18 +102,15 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
 //! Element function: the summed area (square metres) of the triangles `bits` of a cell whose
 //! corners lie at depths z00 (top left), z10 (top right), z01 (bottom left) and z11 on the rays
 //! (x0, y0, 1), (x1, y0, 1), (x0, y1, 1), (x1, y1, 1), xi = (ui − cx)/fx, yi = (vi − cy)/fy.
-//! Both areas are formed and an absent triangle's masked to +0 (keep_if), without a branch, so
-//! that a row of cells vectorises; whatever the corners' depths, the sum is that of the existing
-//! triangles alone.
-inline float keep_if(float value, unsigned keep) {  // keep: 0 or 1; a mask, not a product (0·inf is NaN)
-  return std::bit_cast<float>(std::bit_cast<std::uint32_t>(value) & (0u - keep));
-}
+//! Both areas are formed and an absent triangle's replaced by +0 (select_if), without a branch,
+//! so that a row of cells vectorises; whatever the corners' depths, the sum is that of the
+//! existing triangles alone.
 inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uint8_t bits, float z00, float z10, float z01, float z11) {
   const Eigen::Vector3f p(x0 * z00, y0 * z00, z00), r(x1 * z10, y0 * z10, z10), b(x0 * z01, y1 * z01, z01), d(x1 * z11, y1 * z11, z11);
   const float upper = 0.5f * std::sqrt((b - p).cross(r - p).squaredNorm());
   const float lower = 0.5f * std::sqrt((b - r).cross(d - r).squaredNorm());
   // Summed from 0 in this order, as the branching version did, for the same floats.
-  return 0.0f + keep_if(upper, bits & kUpperTriangle) + keep_if(lower, (bits & kLowerTriangle) >> 1);
+  return 0.0f + select_if(bits & kUpperTriangle, upper, 0.0f) + select_if((bits & kLowerTriangle) >> 1, lower, 0.0f);
 }
 
 //! Element function: the score at (x, y) in pixels of a level whose pixels are 1/cells_per_pixel
