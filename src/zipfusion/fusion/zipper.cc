@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <thread>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
@@ -221,24 +220,15 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   }
   const Clock::time_point taken_at = Clock::now();
 
-  // The seams are triangulated while the kept triangles are counted and written (assembly): the
-  // output's vertices and kept triangles need only the seams' points, not their triangles. The
-  // threads take tasks from one list in turn: each camera's count, then the seams, longest
-  // first, then each camera's writing. The seams are a few long tasks of unequal length (on
-  // samba-4cam a thread was left without one for 6–7 % of the stitching), and the writing
-  // fills those gaps. Kept and seam triangles share pixel vertices; each camera's part is
-  // written at offsets from a prefix sum of the counts, which the last count to finish forms.
+  // The seams are triangulated while the kept triangles are written (assembly): the output's
+  // vertices and kept triangles need only the seams' points, not their triangles. Kept and seam
+  // triangles share pixel vertices; each camera's part is written at offsets from a prefix sum
+  // of the cameras' counts, taken first.
   TriangleMesh& mesh = result.mesh;
   std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
-  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
-  std::vector<int> by_size(taken.size());
-  for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
-  std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
-  const int active_count = static_cast<int>(active.size());
-  std::atomic<int> counted{0};
-  std::atomic<bool> offsets_ready{false};
   // Each camera's used pixels (by kept triangles or seams) and triangles, counted.
-  auto count_camera = [&](int c) {
+  parallel_for(0, static_cast<int>(active.size()), [&](int i) {
+    const int c = active[i];
     ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     // Only the box is read, and every pixel of it is written below: no clearing.
@@ -260,28 +250,24 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (int v = box.v0; v < box.v1; ++v) vertices += count_used_row(s.used.data() + v * depth_mesh.width + box.u0, box.u1 - box.u0);
     vertex_count[c] = vertices;
     triangle_count[c] = triangles;
-    if (counted.fetch_add(1, std::memory_order_acq_rel) + 1 < active_count) return;
-    for (int k = 0; k < camera_count; ++k) {
-      vertex_offset[k + 1] = vertex_offset[k] + vertex_count[k];
-      triangle_offset[k + 1] = triangle_offset[k] + triangle_count[k];
-    }
-    // Room for the seam triangles first (reserving after the resize moved every kept triangle):
-    // a triangulation of n points has fewer than 2n triangles.
-    size_t seam_bound = 0;
-    for (const TakenSeam& seam : taken) seam_bound += 2 * seam.seam.vertices.size();
-    mesh.positions.clear();
-    mesh.colors.clear();
-    mesh.triangles.clear();
-    mesh.triangles.reserve(triangle_offset[camera_count] + seam_bound);
-    mesh.triangles.resize(triangle_offset[camera_count]);
-    mesh.positions.resize(vertex_offset[camera_count]);
-    mesh.colors.resize(vertex_offset[camera_count]);
-    offsets_ready.store(true, std::memory_order_release);
-  };
+  }, options.num_threads);
+  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
+  for (int c = 0; c < camera_count; ++c) {
+    vertex_offset[c + 1] = vertex_offset[c] + vertex_count[c];
+    triangle_offset[c + 1] = triangle_offset[c] + triangle_count[c];
+  }
+  // Room for the seam triangles first (reserving after the resize moved every kept triangle): a
+  // triangulation of n points has fewer than 2n triangles.
+  size_t seam_bound = 0;
+  for (const TakenSeam& seam : taken) seam_bound += 2 * seam.seam.vertices.size();
+  mesh.positions.clear();
+  mesh.colors.clear();
+  mesh.triangles.clear();
+  mesh.triangles.reserve(triangle_offset[camera_count] + seam_bound);
+  mesh.triangles.resize(triangle_offset[camera_count]);
+  mesh.positions.resize(vertex_offset[camera_count]);
+  mesh.colors.resize(vertex_offset[camera_count]);
   auto write_camera = [&](int c) {
-    // Every count was taken before this task (they come first in the list) and is running: the
-    // wait is short, if any.
-    while (!offsets_ready.load(std::memory_order_acquire)) std::this_thread::yield();
     ZipperScratch::Camera& s = scratch.cameras[c];
     const DepthMesh& depth_mesh = *cameras[c].mesh;
     const int first = vertex_offset[c];
@@ -321,26 +307,25 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                 taken[i]);
     stitched_at[i] = Clock::now();
   };
+  // One list the threads take tasks from in turn: the seams, longest first, then each camera's
+  // writing. The seams are a few long tasks of unequal length (on samba-4cam a thread was left
+  // without one for 6–7 % of the stitching), and the writing fills those gaps.
+  std::vector<int> by_size(taken.size());
+  for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
+  std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
   const int seam_count = static_cast<int>(taken.size());
-  const int task_count = 2 * active_count + seam_count;
+  const int task_count = seam_count + static_cast<int>(active.size());
   const int task_threads = std::max(1, std::min(task_count, options.num_threads > 0 ? options.num_threads : hardware_threads()));
   std::atomic<int> next_task{0};
   parallel_for(0, task_threads, [&](int) {
     for (int k; (k = next_task.fetch_add(1)) < task_count;) {
-      if (k < active_count) {
-        count_camera(active[k]);
-      } else if (k < active_count + seam_count) {
-        stitch(by_size[k - active_count]);
+      if (k < seam_count) {
+        stitch(by_size[k]);
       } else {
-        write_camera(active[k - active_count - seam_count]);
+        write_camera(active[k - seam_count]);
       }
     }
   }, task_threads);
-  if (active_count == 0) {  // no count ran to size the output
-    mesh.positions.clear();
-    mesh.colors.clear();
-    mesh.triangles.clear();
-  }
   std::vector<Seam> seams(taken.size());
   for (size_t i = 0; i < taken.size(); ++i) {
     const auto [a, b] = result.pairs[i];
