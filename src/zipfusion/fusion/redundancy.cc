@@ -295,6 +295,70 @@ void build_summed_area_tables(const float* map_a, const float* map_b, int width,
   }
 }
 
+// sums[i] = right[i] − left[i], rounded to float.
+ZF_ROW_KERNEL void differences_row(const double* left, const double* right, int count, float* sums) {
+  for (int i = 0; i < count; ++i) sums[i] = static_cast<float>(right[i] - left[i]);
+}
+
+// columns[j] = below[j] − above[j].
+ZF_ROW_KERNEL void column_sums_row(const double* above, const double* below, int count, double* columns) {
+  for (int j = 0; j < count; ++j) columns[j] = below[j] - above[j];
+}
+
+// The sums over windows of 2·radius + 1 cells, cut at the row's ends, of a row of `width` cells,
+// from the summed-area table's rows above and below the window's band of rows. `padded` gets the
+// band's column sums (width + 1) with radius copies of the first before them and of the last
+// after, so that each window's sum is the difference of two entries 2·radius + 1 apart: one loop
+// without bounds tests, which vectorises. The sums are exact in double (build_summed_area_tables),
+// so the order of a window's four table entries does not change the float it rounds to.
+void window_sums_row(const double* above, const double* below, int width, int radius, std::vector<double>& padded, float* sums) {
+  padded.resize(static_cast<size_t>(width) + 2 * radius + 1);
+  column_sums_row(above, below, width + 1, padded.data() + radius);
+  std::fill_n(padded.begin(), radius, padded[radius]);
+  std::fill_n(padded.begin() + radius + width + 1, radius, padded[radius + width]);
+  differences_row(padded.data(), padded.data() + 2 * radius + 1, width, sums);
+}
+
+// The ratio of `count` windows' areas as smoothness_score clamps and scales it, in double (where
+// a window has no area the ratio is not a number or infinite; smoothness_scores drops it).
+ZF_ROW_KERNEL void smoothness_bases_row(const float* area_sums, const float* smooth_sums, int count, float lowest_ratio, double* bases) {
+  for (int x = 0; x < count; ++x) bases[x] = std::min(std::max(smooth_sums[x] / area_sums[x], lowest_ratio), 1.0f) / kSmoothnessReference;
+}
+
+ZF_ROW_KERNEL void multiply_row(const double* factors, int count, double* products) {
+  for (int x = 0; x < count; ++x) products[x] *= factors[x];
+}
+
+ZF_ROW_KERNEL void square_row(int count, double* values) {
+  for (int x = 0; x < count; ++x) values[x] *= values[x];
+}
+
+// The scores where a cell has triangles and its window area, 0 elsewhere.
+ZF_ROW_KERNEL void smoothness_scores(const std::uint8_t* bits, const float* area_sums, const double* powers, int count, float* scores) {
+  for (int x = 0; x < count; ++x) {
+    scores[x] = select_if(static_cast<unsigned>(bits[x] != 0) & static_cast<unsigned>(area_sums[x] > 0.0f), static_cast<float>(powers[x]), 0.0f);
+  }
+}
+
+// smoothness_score of `count` cells from their windows' sums of area and smoothed area, 0 where a
+// cell has no triangles (bits) or its window no area. A whole exponent takes smoothness_power's
+// squarings and products, each a pass over the row.
+void smoothness_score_row(const std::uint8_t* bits, const float* area_sums, const float* smooth_sums, int count, float exponent,
+                          float lowest_ratio, std::vector<double>& powers, std::vector<double>& results, float* scores) {
+  smoothness_bases_row(area_sums, smooth_sums, count, lowest_ratio, powers.data());
+  if (exponent != std::floor(exponent)) {
+    for (int x = 0; x < count; ++x) results[x] = std::pow(powers[x], static_cast<double>(exponent));
+  } else {
+    std::fill_n(results.begin(), count, 1.0);
+    for (unsigned e = static_cast<unsigned>(exponent);; square_row(count, powers.data())) {
+      if (e & 1u) multiply_row(powers.data(), count, results.data());
+      e >>= 1;
+      if (e == 0) break;
+    }
+  }
+  smoothness_scores(bits, area_sums, results.data(), count, scores);
+}
+
 }  // namespace
 
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out) {
@@ -360,30 +424,31 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
     area[static_cast<size_t>(y + 1) * box.width - 1] = 0.0f;
     smooth_area[static_cast<size_t>(y + 1) * box.width - 1] = 0.0f;
   }
-  // Window sums from summed-area tables, only at the cells with triangles, the only ones scored
-  // (a box filter computed every cell of the box, through a border as wide as the window). In
-  // double the sums are exact unless the box's areas span more than about 29 binary orders of
-  // magnitude, so each window's sum rounds to the float that OpenCV's box filter, which sums in
-  // double too, gave: the ownership scores of samba-4cam and of synthetic rings are unchanged
-  // bit for bit (zf_zipper_repeat's score fingerprint).
+  // Window sums from summed-area tables (a box filter computed every cell of the box, through a
+  // border as wide as the window). In double the sums are exact unless the box's areas span more
+  // than about 29 binary orders of magnitude, so each window's sum rounds to the float that
+  // OpenCV's box filter, which sums in double too, gave. Sums, ratios and powers go a row at a
+  // time in passes that vectorise, for every cell, and only the cells with triangles keep a score:
+  // cell by cell, with a branch on the triangles, eight scattered table reads and std::pow, the
+  // scoring took 60 % of the smoothness score's time (docs/profile.md).
   build_summed_area_tables(area.data(), smooth_area.data(), box.width, box.height, out.area_table, out.smooth_area_table);
   const int radius = options.window_cells / 2;
   const float lowest_ratio = smoothness_lowest_ratio(options.exponent);
   const int table_width = box.width + 1;
+  std::vector<float>& area_sums = out.row_sums;  // reused: the averaging above is done
+  std::vector<float>& smooth_sums = out.row_counts;
+  area_sums.resize(box.width);
+  smooth_sums.resize(box.width);
+  out.powers.resize(box.width);
+  out.results.resize(box.width);
   for (int y = 0; y < box.height; ++y) {
-    const int top = std::max(0, y - radius) * table_width, bottom = std::min(box.height, y + radius + 1) * table_width;
-    const int base = (box.y + y) * mesh.width + box.x;
-    for (int x = 0; x < box.width; ++x) {
-      float& score = out.cell(box.x + x, box.y + y);
-      score = 0.0f;
-      if (!mesh.triangles[base + x]) continue;
-      const int left = std::max(0, x - radius), right = std::min(box.width, x + radius + 1);
-      auto window_sum = [&](const std::vector<double>& t) {
-        return static_cast<float>(t[bottom + right] - t[top + right] - t[bottom + left] + t[top + left]);
-      };
-      const float a = window_sum(out.area_table);
-      if (a > 0) score = smoothness_score(window_sum(out.smooth_area_table) / a, options.exponent, lowest_ratio);
-    }
+    const size_t top = static_cast<size_t>(std::max(0, y - radius)) * table_width;
+    const size_t bottom = static_cast<size_t>(std::min(box.height, y + radius + 1)) * table_width;
+    window_sums_row(out.area_table.data() + top, out.area_table.data() + bottom, box.width, radius, out.padded_columns, area_sums.data());
+    window_sums_row(out.smooth_area_table.data() + top, out.smooth_area_table.data() + bottom, box.width, radius, out.padded_columns,
+                    smooth_sums.data());
+    smoothness_score_row(mesh.triangles.data() + (box.y + y) * mesh.width + box.x, area_sums.data(), smooth_sums.data(), box.width,
+                         options.exponent, lowest_ratio, out.powers, out.results, &out.cell(box.x, box.y + y));
   }
 }
 

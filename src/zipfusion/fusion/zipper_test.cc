@@ -390,21 +390,45 @@ TEST(Redundancy, SmoothnessWindowReachesExactlyItsHalfWidth) {
   depth(80, 60) += 0.01f;
   DepthMesh mesh;
   triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
-  OwnershipScore score;
-  compute_smoothness(mesh, k, 0, {.window_cells = 13, .exponent = 1, .same_surface_m = 0.03f}, score);
-  const float flat = smoothness_score(1.0f, 1);
-  EXPECT_EQ(score.cell(72, 60), flat);
-  EXPECT_LT(score.cell(73, 60), flat);
-  EXPECT_LT(score.cell(86, 60), flat);
-  EXPECT_EQ(score.cell(87, 60), flat);
-  EXPECT_EQ(score.cell(80, 52), flat);
-  EXPECT_LT(score.cell(80, 53), flat);
-  EXPECT_LT(score.cell(80, 66), flat);
-  EXPECT_EQ(score.cell(80, 67), flat);
-  for (const auto& [u, v] : {std::pair{20, 10}, std::pair{138, 10}, std::pair{20, 108}, std::pair{138, 108}, std::pair{21, 60}, std::pair{80, 11}}) {
-    EXPECT_EQ(score.cell(u, v), flat) << u << "," << v;
+  // The scores of a row are powers taken over the row (squarings for a whole exponent, std::pow
+  // otherwise); each must be the element function's.
+  for (const float exponent : {1.0f, 96.0f, 12.5f}) {
+    SCOPED_TRACE(exponent);
+    OwnershipScore score;
+    compute_smoothness(mesh, k, 0, {.window_cells = 13, .exponent = exponent, .same_surface_m = 0.03f}, score);
+    const float flat = smoothness_score(1.0f, exponent);
+    EXPECT_EQ(score.cell(72, 60), flat);
+    EXPECT_LT(score.cell(73, 60), flat);
+    EXPECT_LT(score.cell(86, 60), flat);
+    EXPECT_EQ(score.cell(87, 60), flat);
+    EXPECT_EQ(score.cell(80, 52), flat);
+    EXPECT_LT(score.cell(80, 53), flat);
+    EXPECT_LT(score.cell(80, 66), flat);
+    EXPECT_EQ(score.cell(80, 67), flat);
+    for (const auto& [u, v] : {std::pair{20, 10}, std::pair{138, 10}, std::pair{20, 108}, std::pair{138, 108}, std::pair{21, 60}, std::pair{80, 11}}) {
+      EXPECT_EQ(score.cell(u, v), flat) << u << "," << v;
+    }
+    EXPECT_EQ(score.cell(19, 60), 0.0f);  // no triangle: no score
   }
-  EXPECT_EQ(score.cell(19, 60), 0.0f);  // no triangle: no score
+}
+
+TEST(Redundancy, SmoothnessScoreIsTheCorrectlyRoundedPower) {
+  // Against the power multiplied out in quadruple-ish precision (long double, 64-bit mantissa):
+  // 96 products lose about 96 units of 2^−64, far below the float's half unit, so the float it
+  // rounds to is the correctly rounded power. Every 97th float ratio between the lowest one and 1.
+  const float lowest = smoothness_lowest_ratio(96.0f);
+  int checked = 0;
+  for (float ratio = lowest; ratio <= 1.0f; ratio = std::nextafter(ratio, 2.0f)) {
+    for (int skip = 0; skip < 96 && ratio < 1.0f; ++skip) ratio = std::nextafter(ratio, 2.0f);
+    const long double base = static_cast<long double>(ratio / kSmoothnessReference);
+    long double power = 1;
+    for (int i = 0; i < 96; ++i) power *= base;
+    ASSERT_EQ(smoothness_score(ratio, 96.0f), static_cast<float>(power)) << ratio;
+    ++checked;
+  }
+  EXPECT_GT(checked, 50000);
+  // A fractional exponent: std::pow in double, rounded once.
+  EXPECT_EQ(smoothness_score(0.5f, 12.5f), static_cast<float>(std::pow(static_cast<double>(0.5f / kSmoothnessReference), 12.5)));
 }
 
 TEST(Redundancy, SmoothnessScoreStaysInFloatRangeAndKeepsTheOrder) {
