@@ -35,6 +35,9 @@ def stage_table(report, names):
         lines.append(f"| {stage} | " + " | ".join(ms(config(report, n)["ms"][stage]) for n in names) + " |")
     lines.append("| frames per second | " + " | ".join(f"{config(report, n)['fps']:.1f}" for n in names) + " |")
     lines.append("| triangles | " + " | ".join(f"{config(report, n)['triangles']:.0f}" for n in names) + " |")
+    # CPU time the hypervisor gave to other guests while each configuration ran: where it is not
+    # small, that column's times are inflated.
+    lines.append("| CPU time stolen, % | " + " | ".join(f"{100 * config(report, n).get('cpu_stolen_share', 0):.1f}" for n in names) + " |")
     return lines
 
 
@@ -54,7 +57,9 @@ def main(folder):
             f"Decoding the PNG depth and JPEG colour of a frame set (cameras in parallel): {ms(samba['decode_ms'])} ms.", ""]
     out += stage_table(samba, ["zipper+filter", "zipper+separable filter", "zipper", "zipper border ownership", "separate+filter", "separate"])
     out += ["", "Without the filter (\"zipper\") ownership is by smoothness, the default there (`--ownership auto`); "
-            "\"zipper border ownership\" is the same with `--ownership border`, the default with the filter (docs/design.md).",
+            "\"zipper border ownership\" is the same with `--ownership border`, the default with the filter (docs/design.md). "
+            "\"CPU time stolen\" is the share of the machine's CPU time (/proc/stat) that the hypervisor gave to other "
+            "guests while the column ran; on a shared virtual machine it inflates the times.",
             "", "Targets (issue 6): total ≤ 16.7 ms without the filter, ≤ 33 ms with it. The paper's Table IV figures were lost in "
             "the text extraction; its whole pipeline ran at 7.3 fps (137 ms) with CUDA and four threads.", ""]
 

@@ -29,6 +29,9 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
     const double total = c["ms"]["total"]["median"];
     EXPECT_GT(total, 0);
     EXPECT_NEAR(c["fps"].get<double>(), 1000.0 / total, 1e-6);
+    const double stolen = c["cpu_stolen_share"];  // a share of /proc/stat's CPU time
+    EXPECT_GE(stolen, 0.0);
+    EXPECT_LE(stolen, 1.0);
     for (const auto& [stage, t] : c["ms"].items()) {
       EXPECT_LE(t["median"].get<double>(), t["p95"].get<double>()) << stage;
       EXPECT_LE(t["median"].get<double>(), c["ms"]["total"]["p95"].get<double>()) << stage;

@@ -69,7 +69,32 @@ struct ConfigResult {
   std::map<std::string, Percentiles> stages;
   double triangles = 0;
   double fps = 0;
+  double stolen_share = 0;  // of all CPU time while this configuration ran (cpu_times)
 };
+
+// The machine's CPU time so far, in clock ticks: all of it, and the part "stolen", that a virtual
+// machine's CPUs wanted but the hypervisor gave to others (/proc/stat). On a shared host that
+// part inflates wall-clock times, so timings are comparable only where it is small. Zero where
+// /proc/stat cannot be read.
+struct CpuTimes {
+  long long total = 0;
+  long long steal = 0;
+};
+
+CpuTimes cpu_times() {
+  std::ifstream stat("/proc/stat");
+  std::string label;
+  CpuTimes times;
+  if (!(stat >> label) || label != "cpu") return times;
+  // user nice system idle iowait irq softirq steal (guest time is counted in user already)
+  for (int field = 0; field < 8; ++field) {
+    long long ticks = 0;
+    if (!(stat >> ticks)) return {};
+    times.total += ticks;
+    if (field == 7) times.steal = ticks;
+  }
+  return times;
+}
 
 double resident_mb() {
   std::ifstream statm("/proc/self/statm");
@@ -94,6 +119,7 @@ std::string cpu_model() {
 }
 
 ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::vector<FrameSet>& frames, int repeat) {
+  const CpuTimes before = cpu_times();
   FrameReconstructor reconstructor(rig, config.options);
   reconstructor.recycle(reconstructor.reconstruct(frames.front()).mesh);  // buffers sized: steady state
   std::map<std::string, std::vector<double>> samples;
@@ -110,6 +136,8 @@ ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::ve
   for (const auto& [name, values] : samples) out.stages[name] = percentiles(values);
   out.triangles = percentiles(triangles).median;
   out.fps = out.stages["total"].median > 0 ? 1000.0 / out.stages["total"].median : 0;
+  const CpuTimes after = cpu_times();
+  if (after.total > before.total) out.stolen_share = static_cast<double>(after.steal - before.steal) / static_cast<double>(after.total - before.total);
   return out;
 }
 
@@ -191,7 +219,8 @@ void run_bench(const BenchArgs& args) {
   for (const ConfigResult& r : results) {
     nlohmann::ordered_json stages;
     for (const auto& [name, field] : kStages) stages[name] = {{"median", r.stages.at(name).median}, {"p95", r.stages.at(name).p95}};
-    report["configs"].push_back({{"name", r.name}, {"ms", stages}, {"fps", r.fps}, {"triangles", r.triangles}});
+    report["configs"].push_back({{"name", r.name}, {"ms", stages}, {"fps", r.fps}, {"triangles", r.triangles},
+                                 {"cpu_stolen_share", r.stolen_share}});
   }
   report["peak_rss_mb"] = peak_resident_mb();
   report["soak"] = soak;
@@ -215,6 +244,8 @@ void run_bench(const BenchArgs& args) {
   for (const ConfigResult& r : results) std::printf(" %17.1f", r.fps);
   std::printf("\n%-12s", "triangles");
   for (const ConfigResult& r : results) std::printf(" %17.0f", r.triangles);
+  std::printf("\n%-12s", "CPU stolen %");
+  for (const ConfigResult& r : results) std::printf(" %17.1f", 100.0 * r.stolen_share);
   std::printf("\n\npeak resident memory %.0f MB", peak_resident_mb());
   if (args.soak > 0) {
     std::printf("; resident after %d frame sets %.0f MB, after %d %.0f MB", soak["early_frames"].get<int>(), soak["rss_mb_early"].get<double>(),
