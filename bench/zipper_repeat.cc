@@ -1,11 +1,15 @@
 // Zippering of one samba-4cam frame set (or one of the capture given), repeated, for instruction
 // counts under callgrind, which are exact where this machine's times vary by a third
 // (docs/profile.md):
-//   valgrind --tool=callgrind --toggle-collect='zipfusion::zipper_meshes*' build/zf_zipper_repeat
+//   valgrind --tool=callgrind --toggle-collect="$(build/zf_zipper_repeat --callgrind-function)" build/zf_zipper_repeat
 // with [--frame F] [--unfiltered] [--repeat N] [--capture DIR]; the total over N calls divided by
-// N is the count per frame set once the first call's allocations are amortised. --capture takes
-// another capture than samba-4cam (its true poses where it has them), such as a synthetic ring
-// from `zipfusion synth --cameras 8`, to see how the zipper's parts grow with the cameras.
+// N is the count per frame set once the first call's allocations are amortised. The function is
+// named in full: a pattern such as 'zipfusion::zipper_meshes*' also matches the lambdas inside it
+// that are not inlined, and callgrind toggles collection off again on entering each of those (the
+// counts before 2026-12-02's sixth session missed the ownership scores and the colours that way).
+// --capture takes another capture than samba-4cam (its true poses where it has them), such as a
+// synthetic ring from `zipfusion synth --cameras 8`, to see how the zipper's parts grow with the
+// cameras.
 // Without valgrind it prints the median stage times over the repetitions, one thread unless
 // --threads. Either way it prints what the zipper produced, so that a change meant to be only
 // faster can be checked to give the same mesh.
@@ -25,12 +29,21 @@
 
 using namespace zipfusion;
 
+// zipper_meshes as callgrind names it, for --toggle-collect.
+constexpr const char* kZipperFunction =
+    "zipfusion::zipper_meshes(std::vector<zipfusion::ZipperCamera, std::allocator<zipfusion::ZipperCamera> > const&, "
+    "zipfusion::ZipperOptions const&, zipfusion::ZipperScratch&, zipfusion::TriangleMesh)";
+
 int main(int argc, char** argv) {
   int frame = 0, repeat = 3, threads = 1;
   bool filtered = true;
   std::string capture;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "--callgrind-function") {
+      std::printf("%s\n", kZipperFunction);
+      return 0;
+    }
     if (arg == "--unfiltered") {
       filtered = false;
     } else if (i + 1 < argc && arg == "--capture") {
@@ -39,7 +52,7 @@ int main(int argc, char** argv) {
       const int value = std::atoi(argv[++i]);
       (arg == "--frame" ? frame : arg == "--repeat" ? repeat : threads) = value;
     } else {
-      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T] [--capture DIR]\n");
+      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T] [--capture DIR] | --callgrind-function\n");
       return 2;
     }
   }
