@@ -429,8 +429,8 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
   // than about 29 binary orders of magnitude, so each window's sum rounds to the float that
   // OpenCV's box filter, which sums in double too, gave. Sums, ratios and powers go a row at a
   // time in passes that vectorise, for every cell, and only the cells with triangles keep a score:
-  // cell by cell, with a branch on the triangles, eight scattered table reads and std::pow, the
-  // scoring took 60 % of the smoothness score's time (docs/profile.md).
+  // scored cell by cell, with a branch on the triangles, eight scattered table reads and std::pow,
+  // the smoothness score took 2.7 times as long (docs/profile.md).
   build_summed_area_tables(area.data(), smooth_area.data(), box.width, box.height, out.area_table, out.smooth_area_table);
   const int radius = options.window_cells / 2;
   const float lowest_ratio = smoothness_lowest_ratio(options.exponent);

@@ -413,7 +413,7 @@ TEST(Redundancy, SmoothnessWindowReachesExactlyItsHalfWidth) {
 }
 
 TEST(Redundancy, SmoothnessScoreIsTheCorrectlyRoundedPower) {
-  // Against the power multiplied out in quadruple-ish precision (long double, 64-bit mantissa):
+  // Against the power multiplied out in extended precision (long double, 64-bit mantissa):
   // 96 products lose about 96 units of 2^−64, far below the float's half unit, so the float it
   // rounds to is the correctly rounded power. Every 97th float ratio between the lowest one and 1.
   const float lowest = smoothness_lowest_ratio(96.0f);
