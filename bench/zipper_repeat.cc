@@ -29,7 +29,9 @@
 
 using namespace zipfusion;
 
-// zipper_meshes as callgrind names it, for --toggle-collect.
+// zipper_meshes as callgrind names it (libstdc++'s demangling), for --toggle-collect. It must follow
+// the signature in zipper.h: a name that matches nothing makes callgrind collect nothing, without
+// an error ("Collected : 0").
 constexpr const char* kZipperFunction =
     "zipfusion::zipper_meshes(std::vector<zipfusion::ZipperCamera, std::allocator<zipfusion::ZipperCamera> > const&, "
     "zipfusion::ZipperOptions const&, zipfusion::ZipperScratch&, zipfusion::TriangleMesh)";

@@ -29,6 +29,12 @@ def ms(entry):
     return f"{entry['median']:.1f} / {entry['p95']:.1f}"
 
 
+def stolen(result):
+    """The share of CPU time stolen while a configuration ran, in %, or – where the report predates it."""
+    share = result.get("cpu_stolen_share")
+    return "–" if share is None else f"{100 * share:.1f}"
+
+
 def stage_table(report, names):
     lines = ["| stage (ms, median / p95) | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
     for stage in STAGES:
@@ -37,7 +43,7 @@ def stage_table(report, names):
     lines.append("| triangles | " + " | ".join(f"{config(report, n)['triangles']:.0f}" for n in names) + " |")
     # CPU time the hypervisor gave to other guests while each configuration ran: where it is not
     # small, that column's times are inflated.
-    lines.append("| CPU time stolen, % | " + " | ".join(f"{100 * config(report, n).get('cpu_stolen_share', 0):.1f}" for n in names) + " |")
+    lines.append("| CPU time stolen, % | " + " | ".join(stolen(config(report, n)) for n in names) + " |")
     return lines
 
 
@@ -66,10 +72,10 @@ def main(folder):
     one = config(samba, "zipper 1 thread")
     two = config(samba, "zipper")
     out += ["## One thread against all (the paper's Table III)", "",
-            "| zipper, no filter | total ms (median / p95) | fps |", "|---|---|---|",
-            f"| 1 thread | {ms(one['ms']['total'])} | {one['fps']:.1f} |",
-            f"| {samba['machine']['hardware_threads']} threads | {ms(two['ms']['total'])} | {two['fps']:.1f} |",
-            f"| paper: CUDA + 4 threads, 2011 GPU | 137 | 7.32 |", ""]
+            "| zipper, no filter | total ms (median / p95) | fps | CPU time stolen, % |", "|---|---|---|---|",
+            f"| 1 thread | {ms(one['ms']['total'])} | {one['fps']:.1f} | {stolen(one)} |",
+            f"| {samba['machine']['hardware_threads']} threads | {ms(two['ms']['total'])} | {two['fps']:.1f} | {stolen(two)} |",
+            f"| paper: CUDA + 4 threads, 2011 GPU | 137 | 7.32 | |", ""]
 
     flat = config(samba, "zipper no coarse-to-fine")
     out += ["## Redundancy removal with and without coarse to fine (the paper's Table V)", "",

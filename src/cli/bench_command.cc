@@ -137,7 +137,10 @@ ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::ve
   out.triangles = percentiles(triangles).median;
   out.fps = out.stages["total"].median > 0 ? 1000.0 / out.stages["total"].median : 0;
   const CpuTimes after = cpu_times();
-  if (after.total > before.total) out.stolen_share = static_cast<double>(after.steal - before.steal) / static_cast<double>(after.total - before.total);
+  // Clamped: some kernels' steal counter has been seen to step back.
+  if (after.total > before.total) {
+    out.stolen_share = std::clamp(static_cast<double>(after.steal - before.steal) / static_cast<double>(after.total - before.total), 0.0, 1.0);
+  }
   return out;
 }
 

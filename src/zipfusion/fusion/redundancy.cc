@@ -306,21 +306,21 @@ ZF_ROW_KERNEL void column_sums_row(const double* above, const double* below, int
 }
 
 // The sums over windows of 2·radius + 1 cells, cut at the row's ends, of a row of `width` cells,
-// from the summed-area table's rows above and below the window's band of rows. `padded` gets the
-// band's column sums (width + 1) with radius copies of the first before them and of the last
-// after, so that each window's sum is the difference of two entries 2·radius + 1 apart: one loop
-// without bounds tests, which vectorises. The sums are exact in double (build_summed_area_tables),
-// so the order of a window's four table entries does not change the float it rounds to.
-void window_sums_row(const double* above, const double* below, int width, int radius, std::vector<double>& padded, float* sums) {
-  padded.resize(static_cast<size_t>(width) + 2 * radius + 1);
-  column_sums_row(above, below, width + 1, padded.data() + radius);
-  std::fill_n(padded.begin(), radius, padded[radius]);
-  std::fill_n(padded.begin() + radius + width + 1, radius, padded[radius + width]);
-  differences_row(padded.data(), padded.data() + 2 * radius + 1, width, sums);
+// from the summed-area table's rows above and below the window's band of rows. `padded` (width +
+// 2·radius + 1 entries) gets the band's column sums (width + 1) with radius copies of the first
+// before them and of the last after, so that each window's sum is the difference of two entries
+// 2·radius + 1 apart: one loop without bounds tests, which vectorises. Where the sums are exact in
+// double (compute_smoothness), the order of a window's four table entries does not change the
+// float it rounds to.
+void window_sums_row(const double* above, const double* below, int width, int radius, double* padded, float* sums) {
+  column_sums_row(above, below, width + 1, padded + radius);
+  std::fill_n(padded, radius, padded[radius]);
+  std::fill_n(padded + radius + width + 1, radius, padded[radius + width]);
+  differences_row(padded, padded + 2 * radius + 1, width, sums);
 }
 
 // The ratio of `count` windows' areas as smoothness_score clamps and scales it, in double (where
-// a window has no area the ratio is not a number or infinite; smoothness_scores drops it).
+// a window has no area the ratio is not a number or infinite; smoothness_scores_row drops it).
 ZF_ROW_KERNEL void smoothness_bases_row(const float* area_sums, const float* smooth_sums, int count, float lowest_ratio, double* bases) {
   for (int x = 0; x < count; ++x) bases[x] = std::min(std::max(smooth_sums[x] / area_sums[x], lowest_ratio), 1.0f) / kSmoothnessReference;
 }
@@ -334,7 +334,7 @@ ZF_ROW_KERNEL void square_row(int count, double* values) {
 }
 
 // The scores where a cell has triangles and its window area, 0 elsewhere.
-ZF_ROW_KERNEL void smoothness_scores(const std::uint8_t* bits, const float* area_sums, const double* powers, int count, float* scores) {
+ZF_ROW_KERNEL void smoothness_scores_row(const std::uint8_t* bits, const float* area_sums, const double* powers, int count, float* scores) {
   for (int x = 0; x < count; ++x) {
     scores[x] = select_if(static_cast<unsigned>(bits[x] != 0) & static_cast<unsigned>(area_sums[x] > 0.0f), static_cast<float>(powers[x]), 0.0f);
   }
@@ -342,21 +342,22 @@ ZF_ROW_KERNEL void smoothness_scores(const std::uint8_t* bits, const float* area
 
 // smoothness_score of `count` cells from their windows' sums of area and smoothed area, 0 where a
 // cell has no triangles (bits) or its window no area. A whole exponent takes smoothness_power's
-// squarings and products, each a pass over the row.
+// squarings and products, each a pass over the row; any other std::pow in double, cell by cell.
+// `powers` and `results` hold `count` doubles each.
 void smoothness_score_row(const std::uint8_t* bits, const float* area_sums, const float* smooth_sums, int count, float exponent,
-                          float lowest_ratio, std::vector<double>& powers, std::vector<double>& results, float* scores) {
-  smoothness_bases_row(area_sums, smooth_sums, count, lowest_ratio, powers.data());
+                          float lowest_ratio, double* powers, double* results, float* scores) {
+  smoothness_bases_row(area_sums, smooth_sums, count, lowest_ratio, powers);
   if (exponent != std::floor(exponent)) {
     for (int x = 0; x < count; ++x) results[x] = std::pow(powers[x], static_cast<double>(exponent));
   } else {
-    std::fill_n(results.begin(), count, 1.0);
-    for (unsigned e = static_cast<unsigned>(exponent);; square_row(count, powers.data())) {
-      if (e & 1u) multiply_row(powers.data(), count, results.data());
+    std::fill_n(results, count, 1.0);
+    for (unsigned e = static_cast<unsigned>(exponent);; square_row(count, powers)) {
+      if (e & 1u) multiply_row(powers, count, results);
       e >>= 1;
       if (e == 0) break;
     }
   }
-  smoothness_scores(bits, area_sums, results.data(), count, scores);
+  smoothness_scores_row(bits, area_sums, results, count, scores);
 }
 
 }  // namespace
@@ -427,28 +428,29 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
   // Window sums from summed-area tables (a box filter computed every cell of the box, through a
   // border as wide as the window). In double the sums are exact unless the box's areas span more
   // than about 29 binary orders of magnitude, so each window's sum rounds to the float that
-  // OpenCV's box filter, which sums in double too, gave. Sums, ratios and powers go a row at a
-  // time in passes that vectorise, for every cell, and only the cells with triangles keep a score:
+  // OpenCV's box filter, which sums in double too, gave. Sums, ratios and powers (for a whole
+  // exponent) go a row at a time in passes that vectorise, for every cell, and only the cells
+  // with triangles keep a score:
   // scored cell by cell, with a branch on the triangles, eight scattered table reads and std::pow,
   // the smoothness score took 2.7 times as long (docs/profile.md).
   build_summed_area_tables(area.data(), smooth_area.data(), box.width, box.height, out.area_table, out.smooth_area_table);
   const int radius = options.window_cells / 2;
   const float lowest_ratio = smoothness_lowest_ratio(options.exponent);
   const int table_width = box.width + 1;
-  std::vector<float>& area_sums = out.row_sums;  // reused: the averaging above is done
-  std::vector<float>& smooth_sums = out.row_counts;
-  area_sums.resize(box.width);
-  smooth_sums.resize(box.width);
+  out.area_sums.resize(box.width);
+  out.smooth_sums.resize(box.width);
+  out.padded_columns.resize(static_cast<size_t>(box.width) + 2 * radius + 1);
   out.powers.resize(box.width);
   out.results.resize(box.width);
   for (int y = 0; y < box.height; ++y) {
     const size_t top = static_cast<size_t>(std::max(0, y - radius)) * table_width;
     const size_t bottom = static_cast<size_t>(std::min(box.height, y + radius + 1)) * table_width;
-    window_sums_row(out.area_table.data() + top, out.area_table.data() + bottom, box.width, radius, out.padded_columns, area_sums.data());
-    window_sums_row(out.smooth_area_table.data() + top, out.smooth_area_table.data() + bottom, box.width, radius, out.padded_columns,
-                    smooth_sums.data());
-    smoothness_score_row(mesh.triangles.data() + (box.y + y) * mesh.width + box.x, area_sums.data(), smooth_sums.data(), box.width,
-                         options.exponent, lowest_ratio, out.powers, out.results, &out.cell(box.x, box.y + y));
+    window_sums_row(out.area_table.data() + top, out.area_table.data() + bottom, box.width, radius, out.padded_columns.data(),
+                    out.area_sums.data());
+    window_sums_row(out.smooth_area_table.data() + top, out.smooth_area_table.data() + bottom, box.width, radius, out.padded_columns.data(),
+                    out.smooth_sums.data());
+    smoothness_score_row(mesh.triangles.data() + (box.y + y) * mesh.width + box.x, out.area_sums.data(), out.smooth_sums.data(), box.width,
+                         options.exponent, lowest_ratio, out.powers.data(), out.results.data(), &out.cell(box.x, box.y + y));
   }
 }
 

@@ -412,6 +412,44 @@ TEST(Redundancy, SmoothnessWindowReachesExactlyItsHalfWidth) {
   }
 }
 
+TEST(Redundancy, SmoothnessRowPassesGiveTheElementFunctionsScores) {
+  // A noisy sheet, so that the windows' ratios differ from cell to cell. With exponent 1 a cell's
+  // score is its base itself (the clamped ratio / 0.6, a float times 1.0), so with any other
+  // exponent it must be smoothness_power of that base (clamped at that exponent's lowest ratio),
+  // rounded once: the row passes (squarings, or std::pow for a fractional exponent) against the
+  // element function, cell by cell.
+  const Intrinsics k{.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  Image<float> depth(k.width, k.height, 0.0f);
+  std::mt19937 random(7);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  for (int v = 10; v < 110; ++v) {
+    for (int u = 20; u < 140; ++u) depth(u, v) = 2.5f + noise(random);
+  }
+  DepthMesh mesh;
+  triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
+  const SmoothnessOptions base_options{.window_cells = 13, .exponent = 1, .same_surface_m = 0.06f};
+  OwnershipScore bases;
+  compute_smoothness(mesh, k, 0, base_options, bases);
+  std::set<float> distinct;
+  for (const float exponent : {96.0f, 12.5f, 7.0f}) {
+    SCOPED_TRACE(exponent);
+    SmoothnessOptions options = base_options;
+    options.exponent = exponent;
+    OwnershipScore score;
+    compute_smoothness(mesh, k, 0, options, score);
+    const float lowest_base = smoothness_lowest_ratio(exponent) / kSmoothnessReference;
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        const float base = bases.cell(u, v);
+        const float expected = base > 0 ? static_cast<float>(smoothness_power(std::max(base, lowest_base), exponent)) : 0.0f;
+        ASSERT_EQ(score.cell(u, v), expected) << u << "," << v;
+        if (base > 0) distinct.insert(base);
+      }
+    }
+  }
+  EXPECT_GT(distinct.size(), 1000u);  // the sheet's windows gave many different ratios
+}
+
 TEST(Redundancy, SmoothnessScoreIsTheCorrectlyRoundedPower) {
   // Against the power multiplied out in extended precision (long double, 64-bit mantissa):
   // 96 products lose about 96 units of 2^−64, far below the float's half unit, so the float it
