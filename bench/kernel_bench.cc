@@ -30,6 +30,14 @@ void BM_Foreground(benchmark::State& state) {
 }
 BENCHMARK(BM_Foreground)->Unit(benchmark::kMillisecond);
 
+// Level of detail 1: the full-resolution foreground to every second pixel, each the mean of its surface.
+void BM_SubsampleDepth(benchmark::State& state) {
+  const SambaFrame& f = frame();
+  Image<float> out;
+  for (auto _ : state) subsample_depth(f.foreground[0], 1, 0.015f, out);
+}
+BENCHMARK(BM_SubsampleDepth)->Unit(benchmark::kMillisecond);
+
 void BM_BilateralFilter(benchmark::State& state) {
   const SambaFrame& f = frame();
   const BilateralKernel kernel(BilateralOptions{});

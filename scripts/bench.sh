@@ -39,6 +39,12 @@ for mode in zipper separate; do
     "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
   done
 done
+for filter in bilateral none; do
+  name="zipper_${filter}_lod1"
+  "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --filter "$filter" --lod 1 \
+    --out "$OUT/meshes/$name" > /dev/null
+  "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
+done
 
 if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
   step "Open3D TSDF (10 mm, 5 mm) and Poisson, same frames"

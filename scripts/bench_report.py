@@ -67,7 +67,12 @@ def main(folder):
             "\"CPU time stolen\" is the share of the machine's CPU time (/proc/stat) that the hypervisor gave to other "
             "guests while the column ran; on a shared virtual machine it inflates the times.",
             "", "Targets (issue 6): total ≤ 16.7 ms without the filter, ≤ 33 ms with it. The paper's Table IV figures were lost in "
-            "the text extraction; its whole pipeline ran at 7.3 fps (137 ms) with CUDA and four threads.", ""]
+            "the text extraction; its whole pipeline ran at 7.3 fps (137 ms) with CUDA and four threads.", "",
+            "At level of detail 1 (`--lod 1`) the same four 640×480 streams are reconstructed from every second depth pixel, "
+            "each the mean of the pixels around it on its surface (`subsample_depth`, docs/design.md): a quarter of the "
+            "triangles, about as many as Open3D's TSDF at 10 mm gives (Table II below).", ""]
+    out += stage_table(samba, ["zipper lod 1", "zipper+filter lod 1"])
+    out.append("")
 
     one = config(samba, "zipper 1 thread")
     two = config(samba, "zipper")
@@ -102,11 +107,13 @@ def main(folder):
             "large comps (all) | triangles |",
             "|---|---|---|---|---|---|---|---|"]
     rows = []
-    timing = {"zipper_bilateral": "zipper+filter", "zipper_none": "zipper", "separate_bilateral": "separate+filter", "separate_none": "separate"}
+    timing = {"zipper_bilateral": "zipper+filter", "zipper_none": "zipper", "zipper_bilateral_lod1": "zipper+filter lod 1",
+              "zipper_none_lod1": "zipper lod 1", "separate_bilateral": "separate+filter", "separate_none": "separate"}
     for name, label in timing.items():
         evaluation = load(folder, f"eval_{name}.json")
-        if evaluation:
-            rows.append((f"zipfusion {label}", evaluation, config(samba, label)["ms"]["total"]["median"]))
+        timed = next((c for c in samba["configs"] if c["name"] == label), None)
+        if evaluation and timed:
+            rows.append((f"zipfusion {label}", evaluation, timed["ms"]["total"]["median"]))
     for voxel in ["0.01", "0.005"]:
         o3d, evaluation = load(folder, f"open3d_{voxel}.json"), load(folder, f"eval_open3d_{voxel}.json")
         if o3d and evaluation:

@@ -23,7 +23,7 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_GT(report["decode_ms"]["median"].get<double>(), 0);
   std::map<std::string, nlohmann::json> configs;
   for (const auto& c : report["configs"]) configs[c["name"]] = c;
-  ASSERT_EQ(configs.size(), 8u);
+  ASSERT_EQ(configs.size(), 10u);
   for (const auto& [name, c] : configs) {
     SCOPED_TRACE(name);
     const double total = c["ms"]["total"]["median"];
@@ -47,6 +47,13 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_EQ(configs["zipper border ownership"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_NE(configs["zipper border ownership"]["triangles"], configs["zipper"]["triangles"]);
   EXPECT_GT(configs["zipper+separable filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  // Level of detail 1: a quarter of the triangles, give or take the seams.
+  for (const char* lod : {"zipper lod 1", "zipper+filter lod 1"}) {
+    const double share = configs[lod]["triangles"].get<double>() / configs["zipper"]["triangles"].get<double>();
+    EXPECT_GT(share, 0.15) << lod;
+    EXPECT_LT(share, 0.35) << lod;
+  }
+  EXPECT_GT(configs["zipper+filter lod 1"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_EQ(report["soak"]["frames"], 3);
   EXPECT_EQ(report["soak"]["early_frames"], 3);
   // Buffers are sized by the first frame set: three more must not grow the resident size.

@@ -25,7 +25,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements")->capture_default_str();
   cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together")
       ->capture_default_str();
-  cmd->add_option("--lod", o.depth_level, "Level of detail: reconstruct from every 2^LOD-th depth pixel (1: a quarter of the triangles)")
+  cmd->add_option("--lod", o.depth_level, "Level of detail: reconstruct from every 2^LOD-th depth pixel, each the mean of its surface around it (1: a quarter of the triangles)")
       ->capture_default_str();
   cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
   cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();

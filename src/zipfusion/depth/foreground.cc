@@ -1,5 +1,8 @@
 #include "zipfusion/depth/foreground.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/row_kernel.h"
 
@@ -57,6 +60,115 @@ void extract_foreground(const DepthImage& raw, double depth_unit_m, const Camera
   const ForegroundParams params(depth_unit_m, camera, volume, options);
   for (int v = 0; v < raw.height; ++v) {
     foreground_row(raw.data.data() + static_cast<size_t>(v) * raw.width, raw.width, v, params, depth_m.data.data() + static_cast<size_t>(v) * raw.width);
+  }
+}
+
+float subsampled_depth(const Image<float>& depth, int u, int v, int level, float same_surface) {
+  const int step = 1 << level, x0 = u * step, y0 = v * step;
+  const float centre = depth(x0, y0);
+  if (centre == 0.0f) return 0.0f;
+  float weighted = 0.0f, weights = 0.0f;
+  for (int dy = -(step - 1); dy <= step - 1; ++dy) {
+    const int y = y0 + dy;
+    if (y < 0 || y >= depth.height) continue;
+    const float wy = static_cast<float>(step - std::abs(dy));
+    for (int dx = -(step - 1); dx <= step - 1; ++dx) {
+      const int x = x0 + dx;
+      if (x < 0 || x >= depth.width) continue;
+      const float z = depth(x, y);
+      // Branch-free: a pixel of another surface (or none) adds exactly 0.
+      const float w = z > 0.0f && std::abs(z - centre) < same_surface ? wy * static_cast<float>(step - std::abs(dx)) : 0.0f;
+      weighted += w * z;
+      weights += w;
+    }
+  }
+  return weighted / weights;  // the centre itself weighs step², so weights > 0
+}
+
+namespace {
+
+// One tap of the subsampled pixels [0, n) of a chunk: z = taps[i·kStep] added with `tap_weight`
+// where it lies on the surface of centres[i]. The taps are gathered first: GCC vectorises a
+// strided copy but not the strided load inside the sum.
+template <int kStep>
+[[gnu::always_inline]] inline void add_tap(const float* taps, const float* centres, int n, float tap_weight, float same_surface, float* gathered,
+                                           float* weighted, float* weights) {
+  for (int i = 0; i < n; ++i) gathered[i] = taps[i * kStep];
+  for (int i = 0; i < n; ++i) {
+    const float z = gathered[i];
+    const unsigned same = static_cast<unsigned>(z > 0.0f) & static_cast<unsigned>(std::abs(z - centres[i]) < same_surface);
+    const float w = select_if(same, tap_weight, 0.0f);
+    weighted[i] += w * z;
+    weights[i] += w;
+  }
+}
+
+// subsampled_depth over pixels [u_begin, u_end) of output row v, all of whose taps lie inside the
+// image: a pass per tap over a chunk of the row, adding in the element function's order, so each
+// pixel gets the same float.
+template <int kStep>
+[[gnu::always_inline]] inline void subsample_row(const Image<float>& depth, int v, int u_begin, int u_end, float same_surface, float* out) {
+  constexpr int kChunk = 256;
+  float weighted[kChunk], weights[kChunk], centres[kChunk], gathered[kChunk];
+  for (int chunk = u_begin; chunk < u_end; chunk += kChunk) {
+    const int n = std::min(kChunk, u_end - chunk);
+    const float* centre_row = depth.data.data() + static_cast<size_t>(v * kStep) * depth.width + static_cast<size_t>(chunk) * kStep;
+    for (int i = 0; i < n; ++i) {
+      centres[i] = centre_row[i * kStep];
+      weighted[i] = 0.0f;
+      weights[i] = 0.0f;
+    }
+    for (int dy = -(kStep - 1); dy <= kStep - 1; ++dy) {
+      const float wy = static_cast<float>(kStep - std::abs(dy));
+      for (int dx = -(kStep - 1); dx <= kStep - 1; ++dx) {
+        const float* taps = centre_row + static_cast<ptrdiff_t>(dy) * depth.width + dx;
+        add_tap<kStep>(taps, centres, n, wy * static_cast<float>(kStep - std::abs(dx)), same_surface, gathered, weighted, weights);
+      }
+    }
+    for (int i = 0; i < n; ++i) out[chunk + i] = select_if(centres[i] != 0.0f, weighted[i] / weights[i], 0.0f);
+  }
+}
+
+// The row kernels, one per level: a constant stride vectorises, and GCC clones no templates (so
+// the template is inlined into each clone).
+ZF_ROW_KERNEL void subsample_row_level1(const Image<float>& depth, int v, int u_begin, int u_end, float same_surface, float* out) {
+  subsample_row<2>(depth, v, u_begin, u_end, same_surface, out);
+}
+ZF_ROW_KERNEL void subsample_row_level2(const Image<float>& depth, int v, int u_begin, int u_end, float same_surface, float* out) {
+  subsample_row<4>(depth, v, u_begin, u_end, same_surface, out);
+}
+ZF_ROW_KERNEL void subsample_row_level3(const Image<float>& depth, int v, int u_begin, int u_end, float same_surface, float* out) {
+  subsample_row<8>(depth, v, u_begin, u_end, same_surface, out);
+}
+
+}  // namespace
+
+void subsample_depth(const Image<float>& depth, int level, float same_surface, Image<float>& out) {
+  const int step = 1 << level, reach = step - 1;
+  out.width = (depth.width - 1) / step + 1;
+  out.height = (depth.height - 1) / step + 1;
+  out.data.resize(static_cast<size_t>(out.width) * out.height);
+  // Pixels whose taps all lie inside: u·step ± reach within the width.
+  const int u_begin = (reach + step - 1) / step;
+  const int u_end = std::max(u_begin, (depth.width - 1 - reach) / step + 1);
+  for (int v = 0; v < out.height; ++v) {
+    float* row = out.data.data() + static_cast<size_t>(v) * out.width;
+    const bool inside = v * step - reach >= 0 && v * step + reach < depth.height;
+    if (!inside || u_end > out.width) {
+      for (int u = 0; u < out.width; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+      continue;
+    }
+    for (int u = 0; u < u_begin; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+    if (level == 1) {
+      subsample_row_level1(depth, v, u_begin, u_end, same_surface, row);
+    } else if (level == 2) {
+      subsample_row_level2(depth, v, u_begin, u_end, same_surface, row);
+    } else if (level == 3) {
+      subsample_row_level3(depth, v, u_begin, u_end, same_surface, row);
+    } else {
+      for (int u = u_begin; u < u_end; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+    }
+    for (int u = u_end; u < out.width; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
   }
 }
 

@@ -49,4 +49,17 @@ inline float foreground_depth(int u, int v, unsigned short raw, const Foreground
 void extract_foreground(const DepthImage& raw, double depth_unit_m, const CameraModel& camera, const std::optional<Box3d>& volume,
                         const ForegroundOptions& options, Image<float>& depth_m);
 
+//! Element function: the depth of pixel (u, v) of `depth` subsampled by step = 2^level, that is of
+//! pixel (u·step, v·step), as the tent-weighted mean (weights (step − |dx|)·(step − |dy|)) of the
+//! pixels within step − 1 of it that lie on its surface (nonzero and within `same_surface` metres
+//! of its depth); 0 where that pixel is 0. Taking every step-th pixel alone would discard three
+//! quarters of the measurements at level 1; the mean keeps their averaging (the Kinect's noise is
+//! σ ≈ 5–9 mm at 2–3 m) without mixing a surface with the one behind it. The pixel stays where it
+//! was, so the subsampled intrinsics (subsampled_intrinsics) describe it.
+float subsampled_depth(const Image<float>& depth, int u, int v, int level, float same_surface);
+
+//! `out` (resized to the subsampled size, (width − 1) / 2^level + 1 by the same for height) =
+//! subsampled_depth at every pixel.
+void subsample_depth(const Image<float>& depth, int level, float same_surface, Image<float>& out);
+
 }  // namespace zipfusion

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 namespace zipfusion {
@@ -59,6 +60,71 @@ TEST(Foreground, WithoutCropOnlyTheRangeCounts) {
   for (int v = 0; v < 48; ++v) {
     for (int u = 0; u < 64; ++u) EXPECT_EQ(out(u, v), u == 5 && v == 5 ? 0.0f : 3000 * 0.001f);
   }
+}
+
+
+// A noisy surface with holes and a step to another 0.4–0.7 m nearer, sized so that at every level the last
+// column and row come from the border path and others from the row kernel.
+Image<float> noisy_surface_with_step(int width, int height, std::uint32_t seed) {
+  Image<float> depth(width, height);
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 0.008f);
+  std::uniform_real_distribution<float> hole(0.0f, 1.0f);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const float surface = u < width / 2 + v / 4 ? 2.0f + 0.002f * static_cast<float>(u) : 2.2f;
+      depth(u, v) = hole(rng) < 0.1f ? 0.0f : surface + noise(rng);
+    }
+  }
+  return depth;
+}
+
+// The row kernel gives the element function's float at every pixel, at every level, and the
+// subsampled size is the one subsampled_intrinsics gives.
+TEST(SubsampleDepth, RowKernelGivesTheElementFunctionsDepth) {
+  for (const int level : {1, 2, 3}) {
+    const Image<float> depth = noisy_surface_with_step(301, 77, 9 + level);
+    Image<float> out;
+    subsample_depth(depth, level, 0.03f, out);
+    const Intrinsics sub = subsampled_intrinsics({.width = 301, .height = 77, .fx = 1, .fy = 1}, level);
+    ASSERT_EQ(out.width, sub.width);
+    ASSERT_EQ(out.height, sub.height);
+    for (int v = 0; v < out.height; ++v) {
+      for (int u = 0; u < out.width; ++u) ASSERT_EQ(out(u, v), subsampled_depth(depth, u, v, level, 0.03f)) << level << ": " << u << "," << v;
+    }
+  }
+}
+
+// The mean keeps the averaging of the pixels it drops (noise σ 8 mm: a tent of 3×3 leaves 0.375 σ,
+// taking every second pixel σ), does not mix the surface with the one across the step (every
+// subsampled pixel stays within 4 σ of its own surface), and leaves holes as holes.
+TEST(SubsampleDepth, AveragesTheSurfaceWithoutMixingSurfaces) {
+  const Image<float> depth = noisy_surface_with_step(640, 480, 3);
+  Image<float> out;
+  subsample_depth(depth, 1, 0.03f, out);
+  double squared_error = 0, squared_error_picked = 0;
+  int count = 0;
+  for (int v = 1; v < out.height - 1; ++v) {
+    for (int u = 1; u < out.width - 1; ++u) {
+      const int x = 2 * u, y = 2 * v;
+      const float picked = depth(x, y);
+      if (picked == 0.0f) {
+        ASSERT_EQ(out(u, v), 0.0f);
+        continue;
+      }
+      const float surface = x < 320 + y / 4 ? 2.0f + 0.002f * static_cast<float>(x) : 2.2f;
+      ASSERT_LT(std::abs(out(u, v) - surface), 0.032f) << u << "," << v;
+      // Away from the step, the error against the true surface.
+      if (std::abs(x - (320 + y / 4)) > 2) {
+        squared_error += (out(u, v) - surface) * (out(u, v) - surface);
+        squared_error_picked += (picked - surface) * (picked - surface);
+        ++count;
+      }
+    }
+  }
+  const double sigma = std::sqrt(squared_error / count), sigma_picked = std::sqrt(squared_error_picked / count);
+  EXPECT_NEAR(sigma_picked, 0.008, 0.0005);
+  EXPECT_LT(sigma, 0.45 * sigma_picked);  // 0.375 σ with all nine pixels; holes drop some
 }
 
 }  // namespace

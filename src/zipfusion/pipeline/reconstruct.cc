@@ -60,11 +60,14 @@ FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions&
     : rig_(at_depth_level(rig, validated(options).depth_level)),
       options_(at_depth_level(options)),
       kernel_(options_.filter),
-      cameras_(rig.cameras.size()) {}
+      cameras_(rig.cameras.size()) {
+  if (options_.depth_level > 0) full_resolution_cameras_ = rig.cameras;
+}
 
 void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth) {
   assert(world_from_depth.size() == rig_.cameras.size());
   for (size_t c = 0; c < rig_.cameras.size(); ++c) rig_.cameras[c].world_from_depth = world_from_depth[c];
+  for (size_t c = 0; c < full_resolution_cameras_.size(); ++c) full_resolution_cameras_[c].world_from_depth = world_from_depth[c];
 }
 
 void FrameReconstructor::recycle(TriangleMesh&& mesh) {
@@ -100,21 +103,21 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   };
 
   stage(result.times.foreground_ms, [&](int c, CameraState& s) {
-    const DepthImage* raw = &frames.cameras[c].depth;
-    if (options_.depth_level > 0) {
-      const int step = 1 << options_.depth_level;
-      const Intrinsics& k = rig_.cameras[c].depth_intrinsics;
-      if ((raw->width - 1) / step + 1 != k.width || (raw->height - 1) / step + 1 != k.height) {
-        throw InvalidInput(rig_.cameras[c].name + ": depth image " + std::to_string(raw->width) + "x" + std::to_string(raw->height) +
-                           " does not match the rig's depth_intrinsics");
-      }
-      s.subsampled.resize(k.width, k.height);
-      for (int v = 0; v < k.height; ++v) {
-        for (int u = 0; u < k.width; ++u) s.subsampled(u, v) = (*raw)(u * step, v * step);
-      }
-      raw = &s.subsampled;
+    const DepthImage& raw = frames.cameras[c].depth;
+    if (options_.depth_level == 0) {
+      extract_foreground(raw, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
+      return;
     }
-    extract_foreground(*raw, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
+    const Intrinsics& k = rig_.cameras[c].depth_intrinsics;
+    const int step = 1 << options_.depth_level;
+    if ((raw.width - 1) / step + 1 != k.width || (raw.height - 1) / step + 1 != k.height) {
+      throw InvalidInput(rig_.cameras[c].name + ": depth image " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
+                         " does not match the rig's depth_intrinsics");
+    }
+    extract_foreground(raw, rig_.depth_unit_m, full_resolution_cameras_[c], rig_.volume, options_.foreground, s.full_foreground);
+    // Same surface: the SDC threshold of full-resolution neighbours (options_.sdc's is scaled up).
+    const float same_surface = static_cast<float>(options_.sdc.max_depth_jump_m) / static_cast<float>(step);
+    subsample_depth(s.full_foreground, options_.depth_level, same_surface, s.foreground);
   });
   if (options_.bilateral) {
     stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });

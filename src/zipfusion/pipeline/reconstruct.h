@@ -35,9 +35,10 @@ struct ReconstructOptions {
   BilateralOptions filter;
   SdcOptions sdc;
   ZipperOptions zipper;  // sdc_max_depth_jump_m is taken from `sdc`
-  // Level of detail: reconstruct from every 2^depth_level-th depth pixel (0 = full resolution; 1
-  // gives a quarter of the triangles, for a stream). Thresholds in pixels shrink and the SDC depth
-  // jump grows with the pixel spacing; colour is still sampled from the full colour image.
+  // Level of detail: reconstruct from every 2^depth_level-th depth pixel, each the mean of the
+  // pixels around it on its surface (subsample_depth; 0 = full resolution; 1 gives a quarter of
+  // the triangles). Thresholds in pixels shrink and the SDC depth jump grows with the pixel
+  // spacing; colour is still sampled from the full colour image.
   int depth_level = 0;
   int num_threads = 0;  // 0 = all hardware threads
 
@@ -94,7 +95,7 @@ class FrameReconstructor {
 
  private:
   struct CameraState {
-    DepthImage subsampled;  // depth_level > 0: every 2^level-th raw depth pixel
+    Image<float> full_foreground;  // depth_level > 0: the foreground at full resolution, before subsample_depth
     Image<float> foreground;
     Image<float> filtered;
     Image<float> filter_scratch;
@@ -103,6 +104,7 @@ class FrameReconstructor {
   };
 
   Rig rig_;
+  std::vector<CameraModel> full_resolution_cameras_;  // depth_level > 0: rig_'s cameras with the depth images' own intrinsics
   ReconstructOptions options_;
   BilateralKernel kernel_;
   std::vector<CameraState> cameras_;
