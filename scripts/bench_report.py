@@ -111,9 +111,8 @@ def main(folder):
               "zipper_none_lod1": "zipper lod 1", "separate_bilateral": "separate+filter", "separate_none": "separate"}
     for name, label in timing.items():
         evaluation = load(folder, f"eval_{name}.json")
-        timed = next((c for c in samba["configs"] if c["name"] == label), None)
-        if evaluation and timed:
-            rows.append((f"zipfusion {label}", evaluation, timed["ms"]["total"]["median"]))
+        if evaluation:
+            rows.append((f"zipfusion {label}", evaluation, config(samba, label)["ms"]["total"]["median"]))
     for voxel in ["0.01", "0.005"]:
         o3d, evaluation = load(folder, f"open3d_{voxel}.json"), load(folder, f"eval_open3d_{voxel}.json")
         if o3d and evaluation:

@@ -241,20 +241,25 @@ void run_bench(const BenchArgs& args) {
   std::printf("%s, %d hardware threads\n%s: %d cameras, depth %s, %d frame sets x %d passes; decode %.1f ms median (%.1f p95) per frame set\n\n",
               cpu_model().c_str(), hardware_threads(), args.capture.c_str(), capture.camera_count(), report["depth_size"].get<std::string>().c_str(),
               count, args.repeat, decode.median, decode.p95);
-  std::printf("%-12s", "ms median/p95");
-  for (const ConfigResult& r : results) std::printf(" %17s", r.name.substr(0, 17).c_str());
-  std::printf("\n");
-  for (const auto& [name, field] : kStages) {
-    std::printf("%-12s", name.c_str());
-    for (const ConfigResult& r : results) std::printf("       %5.1f/%5.1f", r.stages.at(name).median, r.stages.at(name).p95);
+  // Five configurations a block, so that the table fits a terminal.
+  constexpr size_t kBlock = 5;
+  for (size_t first = 0; first < results.size(); first += kBlock) {
+    const size_t last = std::min(results.size(), first + kBlock);
+    std::printf("%s%-13s", first == 0 ? "" : "\n\n", "ms median/p95");
+    for (size_t i = first; i < last; ++i) std::printf(" %24s", results[i].name.c_str());
     std::printf("\n");
+    for (const auto& [name, field] : kStages) {
+      std::printf("%-13s", name.c_str());
+      for (size_t i = first; i < last; ++i) std::printf("              %5.1f/%5.1f", results[i].stages.at(name).median, results[i].stages.at(name).p95);
+      std::printf("\n");
+    }
+    std::printf("%-13s", "fps");
+    for (size_t i = first; i < last; ++i) std::printf(" %24.1f", results[i].fps);
+    std::printf("\n%-13s", "triangles");
+    for (size_t i = first; i < last; ++i) std::printf(" %24.0f", results[i].triangles);
+    std::printf("\n%-13s", "CPU stolen %");
+    for (size_t i = first; i < last; ++i) std::printf(" %24.1f", 100.0 * results[i].stolen_share);
   }
-  std::printf("%-12s", "fps");
-  for (const ConfigResult& r : results) std::printf(" %17.1f", r.fps);
-  std::printf("\n%-12s", "triangles");
-  for (const ConfigResult& r : results) std::printf(" %17.0f", r.triangles);
-  std::printf("\n%-12s", "CPU stolen %");
-  for (const ConfigResult& r : results) std::printf(" %17.1f", 100.0 * r.stolen_share);
   std::printf("\n\npeak resident memory %.0f MB", peak_resident_mb());
   if (args.soak > 0) {
     std::printf("; resident after %d frame sets %.0f MB, after %d %.0f MB", soak["early_frames"].get<int>(), soak["rss_mb_early"].get<double>(),

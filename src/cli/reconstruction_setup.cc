@@ -30,7 +30,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
   cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
   cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
-  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres")
+  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres, for a 580 px focal length (a Kinect at 640x480); scaled by 580/fx for the rig's longest focal length fx")
       ->capture_default_str();
   cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
   cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();

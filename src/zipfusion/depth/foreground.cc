@@ -1,7 +1,9 @@
 #include "zipfusion/depth/foreground.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
+#include <cstddef>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/row_kernel.h"
@@ -63,28 +65,6 @@ void extract_foreground(const DepthImage& raw, double depth_unit_m, const Camera
   }
 }
 
-float subsampled_depth(const Image<float>& depth, int u, int v, int level, float same_surface) {
-  const int step = 1 << level, x0 = u * step, y0 = v * step;
-  const float centre = depth(x0, y0);
-  if (centre == 0.0f) return 0.0f;
-  float weighted = 0.0f, weights = 0.0f;
-  for (int dy = -(step - 1); dy <= step - 1; ++dy) {
-    const int y = y0 + dy;
-    if (y < 0 || y >= depth.height) continue;
-    const float wy = static_cast<float>(step - std::abs(dy));
-    for (int dx = -(step - 1); dx <= step - 1; ++dx) {
-      const int x = x0 + dx;
-      if (x < 0 || x >= depth.width) continue;
-      const float z = depth(x, y);
-      // Branch-free: a pixel of another surface (or none) adds exactly 0.
-      const float w = z > 0.0f && std::abs(z - centre) < same_surface ? wy * static_cast<float>(step - std::abs(dx)) : 0.0f;
-      weighted += w * z;
-      weights += w;
-    }
-  }
-  return weighted / weights;  // the centre itself weighs step², so weights > 0
-}
-
 namespace {
 
 // One tap of the subsampled pixels [0, n) of a chunk: z = taps[i·kStep] added with `tap_weight`
@@ -121,7 +101,7 @@ template <int kStep>
     for (int dy = -(kStep - 1); dy <= kStep - 1; ++dy) {
       const float wy = static_cast<float>(kStep - std::abs(dy));
       for (int dx = -(kStep - 1); dx <= kStep - 1; ++dx) {
-        const float* taps = centre_row + static_cast<ptrdiff_t>(dy) * depth.width + dx;
+        const float* taps = centre_row + static_cast<std::ptrdiff_t>(dy) * depth.width + dx;
         add_tap<kStep>(taps, centres, n, wy * static_cast<float>(kStep - std::abs(dx)), same_surface, gathered, weighted, weights);
       }
     }
@@ -144,6 +124,7 @@ ZF_ROW_KERNEL void subsample_row_level3(const Image<float>& depth, int v, int u_
 }  // namespace
 
 void subsample_depth(const Image<float>& depth, int level, float same_surface, Image<float>& out) {
+  assert(!depth.empty() && level >= 0 && level <= 8 && same_surface > 0 && &out != &depth);
   const int step = 1 << level, reach = step - 1;
   out.width = (depth.width - 1) / step + 1;
   out.height = (depth.height - 1) / step + 1;
@@ -153,22 +134,23 @@ void subsample_depth(const Image<float>& depth, int level, float same_surface, I
   const int u_end = std::max(u_begin, (depth.width - 1 - reach) / step + 1);
   for (int v = 0; v < out.height; ++v) {
     float* row = out.data.data() + static_cast<size_t>(v) * out.width;
-    const bool inside = v * step - reach >= 0 && v * step + reach < depth.height;
-    if (!inside || u_end > out.width) {
-      for (int u = 0; u < out.width; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+    auto by_element = [&](int begin, int end) {
+      for (int u = begin; u < end; ++u) row[u] = subsampled_depth(u, v, depth.data.data(), depth.width, depth.height, level, same_surface);
+    };
+    const bool inside = v * step - reach >= 0 && v * step + reach < depth.height && u_end <= out.width;
+    if (!inside || level < 1 || level > 3) {
+      by_element(0, out.width);
       continue;
     }
-    for (int u = 0; u < u_begin; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+    by_element(0, u_begin);
     if (level == 1) {
       subsample_row_level1(depth, v, u_begin, u_end, same_surface, row);
     } else if (level == 2) {
       subsample_row_level2(depth, v, u_begin, u_end, same_surface, row);
-    } else if (level == 3) {
-      subsample_row_level3(depth, v, u_begin, u_end, same_surface, row);
     } else {
-      for (int u = u_begin; u < u_end; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+      subsample_row_level3(depth, v, u_begin, u_end, same_surface, row);
     }
-    for (int u = u_end; u < out.width; ++u) row[u] = subsampled_depth(depth, u, v, level, same_surface);
+    by_element(u_end, out.width);
   }
 }
 

@@ -4,6 +4,7 @@
 //! lies in the sensor's working range and, when the rig has a capture volume, inside it (this
 //! removes floor, walls and other people).
 
+#include <cmath>
 #include <optional>
 
 #include "zipfusion/core/geometry.h"
@@ -49,17 +50,43 @@ inline float foreground_depth(int u, int v, unsigned short raw, const Foreground
 void extract_foreground(const DepthImage& raw, double depth_unit_m, const CameraModel& camera, const std::optional<Box3d>& volume,
                         const ForegroundOptions& options, Image<float>& depth_m);
 
-//! Element function: the depth of pixel (u, v) of `depth` subsampled by step = 2^level, that is of
-//! pixel (u·step, v·step), as the tent-weighted mean (weights (step − |dx|)·(step − |dy|)) of the
-//! pixels within step − 1 of it that lie on its surface (nonzero and within `same_surface` metres
-//! of its depth); 0 where that pixel is 0. Taking every step-th pixel alone would discard three
-//! quarters of the measurements at level 1; the mean keeps their averaging (the Kinect's noise is
-//! σ ≈ 5–9 mm at 2–3 m) without mixing a surface with the one behind it. The pixel stays where it
-//! was, so the subsampled intrinsics (subsampled_intrinsics) describe it.
-float subsampled_depth(const Image<float>& depth, int u, int v, int level, float same_surface);
+//! Element function: the depth of pixel (u, v) of a depth image (width × height, metres, 0 = none)
+//! subsampled by step = 2^level, that is of pixel (u·step, v·step), as the tent-weighted mean
+//! (weights (step − |dx|)·(step − |dy|)) of the pixels within step − 1 of it that lie on its
+//! surface (nonzero and within `same_surface` metres of its depth, the SDC threshold of
+//! full-resolution neighbours, also for the farther taps of levels 2 and 3: on a steep surface
+//! those drop out, and fewer pixels are averaged); 0 where that pixel is 0. Taking every step-th
+//! pixel alone would discard three quarters of the measurements at level 1; the mean keeps their
+//! averaging (the Kinect's noise is σ ≈ 5–9 mm at 2–3 m) without mixing a surface with the one
+//! behind it. The pixel stays where it was, so the subsampled intrinsics (subsampled_intrinsics)
+//! describe it. Preconditions: same_surface > 0 (the centre then weighs step² and the mean is
+//! defined); (u·step, v·step) inside the image.
+inline float subsampled_depth(int u, int v, const float* depth, int width, int height, int level, float same_surface) {
+  const int step = 1 << level, x0 = u * step, y0 = v * step;
+  const float centre = depth[y0 * width + x0];
+  if (centre == 0.0f) return 0.0f;
+  float weighted = 0.0f, weights = 0.0f;
+  for (int dy = -(step - 1); dy <= step - 1; ++dy) {
+    const int y = y0 + dy;
+    if (y < 0 || y >= height) continue;
+    const float wy = static_cast<float>(step - std::abs(dy));
+    for (int dx = -(step - 1); dx <= step - 1; ++dx) {
+      const int x = x0 + dx;
+      if (x < 0 || x >= width) continue;
+      const float z = depth[y * width + x];
+      // Branch-free: a pixel of another surface (or none) adds exactly 0.
+      const float w = z > 0.0f && std::abs(z - centre) < same_surface ? wy * static_cast<float>(step - std::abs(dx)) : 0.0f;
+      weighted += w * z;
+      weights += w;
+    }
+  }
+  return weighted / weights;
+}
 
 //! `out` (resized to the subsampled size, (width − 1) / 2^level + 1 by the same for height) =
-//! subsampled_depth at every pixel.
+//! subsampled_depth at every pixel; levels 1–3 by row kernels (the border pixels, whose taps reach
+//! outside, by the element function), others by the element function alone. Preconditions:
+//! `depth` not empty, 0 ≤ level ≤ 8, same_surface > 0, `out` not `depth`.
 void subsample_depth(const Image<float>& depth, int level, float same_surface, Image<float>& out);
 
 }  // namespace zipfusion

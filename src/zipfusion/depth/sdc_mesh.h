@@ -29,8 +29,19 @@ namespace zipfusion {
 
 enum TriangleBit : std::uint8_t { kUpperTriangle = 1, kLowerTriangle = 2 };
 
+//! The focal length, in pixels, for which SdcOptions::max_depth_jump_m is set: a Kinect v1's
+//! depth camera at 640×480. Neighbouring pixels of a camera with focal length fx are 580/fx times
+//! as far apart in angle, and the depth step between them grows alike, both from a surface's slope
+//! and from the disparity's quantisation (a structured-light or stereo sensor quantises disparity
+//! in pixels, and depth per disparity step is z²/(baseline·fx)). FrameReconstructor scales the
+//! threshold up by that ratio for a rig of shorter focal length (sdc_depth_jump_for); not down
+//! for a longer one, where the sensor's noise between neighbours, which does not scale, dominates.
+inline constexpr double kSdcReferenceFocalPx = 580.0;
+
 struct SdcOptions {
-  double max_depth_jump_m = 0.03;  // metres; paper Section III-B (see docs/design.md for the choice)
+  // metres, for a camera of focal length kSdcReferenceFocalPx; paper Section III-B (see
+  // docs/design.md for the choice)
+  double max_depth_jump_m = 0.03;
 
   void validate() const;  // throws InvalidInput naming the field
 };

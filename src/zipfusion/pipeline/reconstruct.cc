@@ -24,14 +24,16 @@ const ReconstructOptions& validated(const ReconstructOptions& options) {
   return options;
 }
 
-// The options for depth subsampled by 2^level: lengths in pixels shrink, the depth jump allowed
-// between neighbouring pixels grows with their spacing, and the zipper's pyramid starts at the
-// same coarsest resolution as before.
-ReconstructOptions at_depth_level(ReconstructOptions options) {
+// The options for depth subsampled by 2^level, on `rig` (its cameras' intrinsics already
+// subsampled): lengths in pixels shrink, and the depth jump allowed between neighbouring pixels is
+// scaled from the reference focal length to the rig's (sdc_depth_jump_for), which at a level of
+// detail includes its pixels' spacing; the zipper's pyramid starts at the same coarsest
+// resolution as before.
+ReconstructOptions for_rig_at_depth_level(ReconstructOptions options, const Rig& rig) {
+  options.sdc.max_depth_jump_m = sdc_depth_jump_for(rig, options.sdc.max_depth_jump_m);
   const int level = options.depth_level;
   if (level == 0) return options;
   const double scale = 1 << level;
-  options.sdc.max_depth_jump_m *= scale;
   options.filter.spatial_sigma_px = std::max(0.5, options.filter.spatial_sigma_px / scale);
   options.filter.radius_px = std::max(1, static_cast<int>(options.filter.radius_px / scale));
   options.zipper.hole_closing_px >>= level;
@@ -48,6 +50,16 @@ Rig at_depth_level(Rig rig, int level) {
 
 }  // namespace
 
+double sdc_depth_jump_for(const Rig& rig, double reference_jump_m) {
+  // One threshold for the whole rig (the zipper compares the cameras' surfaces with it): that of
+  // the camera with the longest focal length, the tightest, so that no camera's mesh bridges a
+  // step it should break. Never below the reference: the sensor's random noise between
+  // neighbours does not shrink with finer pixels.
+  double longest = 0;
+  for (const CameraModel& camera : rig.cameras) longest = std::max(longest, camera.depth_intrinsics.fx);
+  return longest > 0 ? reference_jump_m * std::max(1.0, kSdcReferenceFocalPx / longest) : reference_jump_m;
+}
+
 void ReconstructOptions::validate() const {
   if (depth_level < 0 || depth_level > 3) throw InvalidInput("lod: must be in [0, 3]");
   foreground.validate();
@@ -58,10 +70,14 @@ void ReconstructOptions::validate() const {
 
 FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
     : rig_(at_depth_level(rig, validated(options).depth_level)),
-      options_(at_depth_level(options)),
+      options_(for_rig_at_depth_level(options, rig_)),
       kernel_(options_.filter),
       cameras_(rig.cameras.size()) {
-  if (options_.depth_level > 0) full_resolution_cameras_ = rig.cameras;
+  if (options_.depth_level > 0) {
+    full_resolution_cameras_ = rig.cameras;
+    // Same surface for subsample_depth: the SDC threshold of the full-resolution pixels.
+    subsample_same_surface_m_ = static_cast<float>(sdc_depth_jump_for(rig, options.sdc.max_depth_jump_m));
+  }
 }
 
 void FrameReconstructor::set_poses(const std::vector<Rigid3d>& world_from_depth) {
@@ -108,16 +124,13 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
       extract_foreground(raw, rig_.depth_unit_m, rig_.cameras[c], rig_.volume, options_.foreground, s.foreground);
       return;
     }
-    const Intrinsics& k = rig_.cameras[c].depth_intrinsics;
-    const int step = 1 << options_.depth_level;
-    if ((raw.width - 1) / step + 1 != k.width || (raw.height - 1) / step + 1 != k.height) {
+    const Intrinsics& k = full_resolution_cameras_[c].depth_intrinsics;
+    if (raw.width != k.width || raw.height != k.height) {
       throw InvalidInput(rig_.cameras[c].name + ": depth image " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
-                         " does not match the rig's depth_intrinsics");
+                         " does not match the rig's depth_intrinsics (" + std::to_string(k.width) + "x" + std::to_string(k.height) + ")");
     }
     extract_foreground(raw, rig_.depth_unit_m, full_resolution_cameras_[c], rig_.volume, options_.foreground, s.full_foreground);
-    // Same surface: the SDC threshold of full-resolution neighbours (options_.sdc's is scaled up).
-    const float same_surface = static_cast<float>(options_.sdc.max_depth_jump_m) / static_cast<float>(step);
-    subsample_depth(s.full_foreground, options_.depth_level, same_surface, s.foreground);
+    subsample_depth(s.full_foreground, options_.depth_level, subsample_same_surface_m_, s.foreground);
   });
   if (options_.bilateral) {
     stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });

@@ -38,7 +38,7 @@ struct ReconstructOptions {
   // Level of detail: reconstruct from every 2^depth_level-th depth pixel, each the mean of the
   // pixels around it on its surface (subsample_depth; 0 = full resolution; 1 gives a quarter of
   // the triangles). Thresholds in pixels shrink and the SDC depth jump grows with the pixel
-  // spacing; colour is still sampled from the full colour image.
+  // spacing (sdc_depth_jump_for); colour is still sampled from the full colour image.
   int depth_level = 0;
   int num_threads = 0;  // 0 = all hardware threads
 
@@ -52,6 +52,14 @@ struct ReconstructOptions {
     return bilateral ? Ownership::kBorder : Ownership::kSmoothness;
   }
 };
+
+//! The SDC threshold for `rig`'s cameras (at the resolution they are reconstructed at), from the
+//! threshold for a camera of focal length kSdcReferenceFocalPx: scaled by that over the rig's
+//! longest depth focal length where that is shorter (coarser pixels: slope and quantisation steps
+//! grow), kept where it is longer (finer pixels: the sensor's noise between neighbours stays). A
+//! Kinect at 640×480 keeps it; at 320×240, or every second pixel of one (a level of detail), it
+//! doubles; a RealSense D435 at 640×480 (482 px) takes 1.2 times it; 1280×960 keeps it.
+double sdc_depth_jump_for(const Rig& rig, double reference_jump_m);
 
 //! Wall-clock milliseconds per stage of one frame set (stages run over all cameras in parallel).
 struct StageTimes {
@@ -105,6 +113,7 @@ class FrameReconstructor {
 
   Rig rig_;
   std::vector<CameraModel> full_resolution_cameras_;  // depth_level > 0: rig_'s cameras with the depth images' own intrinsics
+  float subsample_same_surface_m_ = 0;                // depth_level > 0: subsample_depth's same_surface
   ReconstructOptions options_;
   BilateralKernel kernel_;
   std::vector<CameraState> cameras_;
