@@ -93,6 +93,12 @@ void run_reconstruct(ReconstructArgs& args) {
   stats["filter"] = r.filter;
   stats["rig"] = r.rig.empty() ? (in.live ? std::string("identity poses") : (fs::path(args.input.capture) / "rig.json").string()) : r.rig;
   stats["options"] = options_json(r.options);
+  // The SDC threshold each camera was triangulated with (from max_depth_jump_m and its focal length).
+  nlohmann::ordered_json applied_jumps = nlohmann::ordered_json::array();
+  for (const CameraModel& camera : in.rig.cameras) {
+    applied_jumps.push_back(sdc_depth_jump(r.options.sdc.max_depth_jump_m, subsampled_intrinsics(camera.depth_intrinsics, r.options.depth_level)));
+  }
+  stats["max_depth_jump_m_per_camera"] = applied_jumps;
   stats["register"] = reconstruction.register_mode();
   stats["pose_updates"] = reconstruction.pose_updates();
   stats["frames"] = frames;

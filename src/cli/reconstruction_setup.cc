@@ -25,12 +25,16 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements")->capture_default_str();
   cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together")
       ->capture_default_str();
-  cmd->add_option("--lod", o.depth_level, "Level of detail: reconstruct from every 2^LOD-th depth pixel, each the mean of its surface around it (1: a quarter of the triangles)")
+  cmd->add_option("--lod", o.depth_level,
+                  "Level of detail: reconstruct from every 2^LOD-th depth pixel, each the mean of its surface around it (1: a quarter of "
+                  "the triangles)")
       ->capture_default_str();
   cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
   cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
   cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
-  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m, "SDC threshold: largest depth difference inside a triangle, metres, for a 580 px focal length (a Kinect at 640x480); scaled by 580/fx for the rig's longest focal length fx")
+  cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m,
+                  "SDC threshold: largest depth difference inside a triangle, metres, for a focal length of 580 px (a Kinect at "
+                  "640x480); a camera with a shorter one f (at --lod, the subsampled one) takes it times 580/f")
       ->capture_default_str();
   cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
   cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
@@ -64,7 +68,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"max_depth_m", options.foreground.max_depth_m},
           {"crop_to_volume", options.foreground.crop_to_volume},
           {"lod", options.depth_level},
-          {"max_depth_jump_m", options.sdc.max_depth_jump_m},
+          {"max_depth_jump_m", options.sdc.max_depth_jump_m},  // for 580 px; each camera's is sdc_depth_jump of it
           {"bilateral_sigma_px", options.filter.spatial_sigma_px},
           {"bilateral_radius_px", options.filter.radius_px},
           {"bilateral_range_sigma_m", options.filter.range_sigma_m},

@@ -66,7 +66,7 @@ TEST(Foreground, WithoutCropOnlyTheRangeCounts) {
 
 // The true surface of noisy_surface: without `step` a plane facing the camera (a tap that strays
 // past a row's end into the next row lies on the same surface, and would be counted); with it, a
-// slanted plane and a band of it 0.4–0.7 m farther away inside the image.
+// slanted plane and a band of it 0.4 m or more farther away inside the image.
 bool in_far_band(int width, int height, int u, int v, bool step) {
   return step && u > width / 4 && u < width / 2 + v / 4 && v > 2 && v < height - 3;
 }
@@ -164,8 +164,8 @@ TEST(SubsampleDepth, AveragesTheSurfaceWithoutMixingSurfaces) {
   const double sigma = std::sqrt(squared_error / count), sigma_picked = std::sqrt(squared_error_picked / count);
   EXPECT_NEAR(sigma_picked, 0.008, 0.0005);
   // 0.375 σ with all nine pixels, 0.397 σ with 10 % holes, and a little more where a neighbour's
-  // noise puts it off the centre's surface (measured: 0.424); a box of 3×3 would leave about 0.375
-  // σ here. The exact weights are TentWeightsOverTheSameSurface's.
+  // noise puts it off the centre's surface (measured: 0.424); a box of 3×3 leaves 1/3 σ (0.35 with
+  // the holes). The exact weights are TentWeightsOverTheSameSurface's.
   EXPECT_GT(sigma, 0.40 * sigma_picked);
   EXPECT_LT(sigma, 0.45 * sigma_picked);
 }

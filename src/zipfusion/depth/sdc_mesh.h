@@ -29,18 +29,27 @@ namespace zipfusion {
 
 enum TriangleBit : std::uint8_t { kUpperTriangle = 1, kLowerTriangle = 2 };
 
-//! The focal length, in pixels, for which SdcOptions::max_depth_jump_m is set: a Kinect v1's
-//! depth camera at 640×480. Neighbouring pixels of a camera with focal length fx are 580/fx times
-//! as far apart in angle, and the depth step between them grows alike, both from a surface's slope
-//! and from the disparity's quantisation (a structured-light or stereo sensor quantises disparity
-//! in pixels, and depth per disparity step is z²/(baseline·fx)). FrameReconstructor scales the
-//! threshold up by that ratio for a rig of shorter focal length (sdc_depth_jump_for); not down
-//! for a longer one, where the sensor's noise between neighbours, which does not scale, dominates.
+//! The focal length, in pixels, for which ReconstructOptions::sdc gives the SDC threshold: a
+//! Kinect v1's depth camera at 640×480. Neighbouring pixels of a camera with focal length f are
+//! 580/f times as far apart in angle, and a surface's slope makes the depth step between them grow
+//! alike; so does the disparity's quantisation where disparity is measured at the delivered
+//! resolution (as `synth` renders it). sdc_depth_jump gives each camera its threshold.
 inline constexpr double kSdcReferenceFocalPx = 580.0;
 
+//! The SDC threshold of a camera with intrinsics k, from `reference_jump_m`, the threshold for a
+//! focal length of kSdcReferenceFocalPx: scaled by 580/f (f = max(fx, fy), the closer-spaced
+//! direction) where f is shorter; kept where it is longer. That floor is a modelling choice: there
+//! the threshold must clear the sensor's noise between neighbours, which `synth`'s Kinect model
+//! does not lower with finer pixels (halving the threshold split a 1280×960 ring's meshes apart,
+//! docs/design.md, "SDC triangulation"); a real sensor's may shrink, and --max-depth-jump sets it.
+inline double sdc_depth_jump(double reference_jump_m, const Intrinsics& k) {
+  const double f = std::max(k.fx, k.fy);
+  return f > 0 ? reference_jump_m * std::max(1.0, kSdcReferenceFocalPx / f) : reference_jump_m;
+}
+
 struct SdcOptions {
-  // metres, for a camera of focal length kSdcReferenceFocalPx; paper Section III-B (see
-  // docs/design.md for the choice)
+  // metres, the threshold applied to the depth map triangulated; paper Section III-B (see
+  // docs/design.md for the choice). FrameReconstructor sets it per camera (sdc_depth_jump).
   double max_depth_jump_m = 0.03;
 
   void validate() const;  // throws InvalidInput naming the field

@@ -214,8 +214,9 @@ bool mark_constrained(Delaunay& triangulation, Delaunay::Vertex_handle from, Del
 }
 
 // Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a 5×5
-// window) on the same surface (within `same_surface`, the SDC threshold), in the camera frame.
-Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, float same_surface) {
+// window) on the same surface (within the view's SDC threshold), in the camera frame.
+Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel) {
+  const float same_surface = view.same_surface;
   constexpr int kRadius = 2;
   const DepthMesh& mesh = *view.mesh;
   const int u = pixel % mesh.width, v = pixel / mesh.width;
@@ -305,7 +306,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
   auto layout_position = [&](const PixelVertex& v) -> Eigen::Vector3f {
     const MeshView& view = v.camera == a.camera ? a : b;
-    return (v.camera == a.camera ? world_from_a : world_from_b) * smoothed_camera_point(view, v.pixel, options.same_surface);
+    return (v.camera == a.camera ? world_from_a : world_from_b) * smoothed_camera_point(view, v.pixel);
   };
 
   // The virtual camera halfway between the two.

@@ -32,7 +32,6 @@ struct SeamOptions {
   float clipping_distance = 0.03f;  // d_c, metres
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
   float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close
-  float same_surface = 0.03f;       // metres: neighbouring pixels this close in depth are one surface (the SDC threshold)
 };
 
 struct Seam {

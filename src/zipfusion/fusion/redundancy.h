@@ -159,6 +159,7 @@ struct MeshView {
   const OwnershipScore* ownership = nullptr;  // null: this view never owns what another sees
   int camera = 0;                          // breaks ownership ties
   int level = 0;                           // pyramid level: cells are 2^level pixels
+  float same_surface = 0.03f;              // metres: neighbouring pixels this close in depth are one surface (the level's SDC threshold)
   // The intrinsics as the element functions use them, converted once per view rather than at
   // every call (each conversion and division sat on a search's critical path).
   float fx = static_cast<float>(intrinsics.fx), fy = static_cast<float>(intrinsics.fy);

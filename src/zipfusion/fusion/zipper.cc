@@ -103,12 +103,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.levels.resize(levels);
     s.bits_before.resize(levels);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
-    views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.ownership, c, 0};
+    const float jump = static_cast<float>(cameras[c].max_depth_jump_m > 0 ? cameras[c].max_depth_jump_m : options.sdc_max_depth_jump_m);
+    views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.ownership, c, 0, jump};
     for (int level = 1; level <= levels; ++level) {
-      downsample_mesh(*cameras[c].mesh, level, static_cast<float>(options.sdc_max_depth_jump_m), s.levels[level - 1]);
+      downsample_mesh(*cameras[c].mesh, level, jump, s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
       views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.ownership, c,
-                         level};
+                         level, jump * static_cast<float>(1 << level)};
     }
     // Ownership at every level from one score, on level 1 of the full-resolution depth whatever
     // level of detail the meshes come from.
@@ -116,7 +117,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     if (options.ownership == Ownership::kSmoothness) {
       const SmoothnessOptions smoothness{.window_cells = std::max(1, options.smoothness_window_px >> score_level) | 1,
                                          .exponent = static_cast<float>(options.smoothness_exponent),
-                                         .same_surface_m = static_cast<float>(options.sdc_max_depth_jump_m) * static_cast<float>(1 << score_level)};
+                                         .same_surface_m = views[c][score_level].same_surface};
       compute_smoothness(*views[c][score_level].mesh, views[c][score_level].intrinsics, score_level, smoothness, s.ownership);
     } else {
       compute_border_distance(*views[c][score_level].mesh, score_level, std::max(1, options.hole_closing_px >> score_level), s.ownership);
@@ -195,8 +196,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   }, options.num_threads);
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
-                                 .ownership_distance = d_r,
-                                 .same_surface = static_cast<float>(options.sdc_max_depth_jump_m)};
+                                 .ownership_distance = d_r};
   // Two phases. The seams take their triangles out of the meshes in rounds (the pairs of a round
   // share no camera, so each mesh is edited in a fixed order); each taken triangle is marked
   // with its round. Then every seam is triangulated at once, the pairs spread over the threads by

@@ -36,7 +36,7 @@ struct ZipperOptions {
   double smoothness_exponent = 96;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
-  double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of the input meshes; coarse levels scale it by 2^level
+  double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)
   int num_threads = 0;                  // 0 = all hardware threads
 
@@ -49,6 +49,7 @@ struct ZipperCamera {
   DepthMesh* mesh = nullptr;  // null: the camera has no depth in this frame set
   const ColorImage* color = nullptr;  // null: the camera's vertices are grey
   const CameraModel* model = nullptr;
+  double max_depth_jump_m = 0;  // the SDC threshold its mesh was made with; 0: ZipperOptions::sdc_max_depth_jump_m
 };
 
 struct ZipperStats {

@@ -24,13 +24,10 @@ const ReconstructOptions& validated(const ReconstructOptions& options) {
   return options;
 }
 
-// The options for depth subsampled by 2^level, on `rig` (its cameras' intrinsics already
-// subsampled): lengths in pixels shrink, and the depth jump allowed between neighbouring pixels is
-// scaled from the reference focal length to the rig's (sdc_depth_jump_for), which at a level of
-// detail includes its pixels' spacing; the zipper's pyramid starts at the same coarsest
-// resolution as before.
-ReconstructOptions for_rig_at_depth_level(ReconstructOptions options, const Rig& rig) {
-  options.sdc.max_depth_jump_m = sdc_depth_jump_for(rig, options.sdc.max_depth_jump_m);
+// The options for depth subsampled by 2^level: lengths in pixels shrink, and the zipper's pyramid
+// starts at the same coarsest resolution as before. (The SDC threshold grows with the pixels'
+// spacing through each camera's subsampled focal length: sdc_depth_jump.)
+ReconstructOptions at_depth_level(ReconstructOptions options) {
   const int level = options.depth_level;
   if (level == 0) return options;
   const double scale = 1 << level;
@@ -50,16 +47,6 @@ Rig at_depth_level(Rig rig, int level) {
 
 }  // namespace
 
-double sdc_depth_jump_for(const Rig& rig, double reference_jump_m) {
-  // One threshold for the whole rig (the zipper compares the cameras' surfaces with it): that of
-  // the camera with the longest focal length, the tightest, so that no camera's mesh bridges a
-  // step it should break. Never below the reference: the sensor's random noise between
-  // neighbours does not shrink with finer pixels.
-  double longest = 0;
-  for (const CameraModel& camera : rig.cameras) longest = std::max(longest, camera.depth_intrinsics.fx);
-  return longest > 0 ? reference_jump_m * std::max(1.0, kSdcReferenceFocalPx / longest) : reference_jump_m;
-}
-
 void ReconstructOptions::validate() const {
   if (depth_level < 0 || depth_level > 3) throw InvalidInput("lod: must be in [0, 3]");
   foreground.validate();
@@ -70,13 +57,14 @@ void ReconstructOptions::validate() const {
 
 FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions& options)
     : rig_(at_depth_level(rig, validated(options).depth_level)),
-      options_(for_rig_at_depth_level(options, rig_)),
+      options_(at_depth_level(options)),
       kernel_(options_.filter),
       cameras_(rig.cameras.size()) {
-  if (options_.depth_level > 0) {
-    full_resolution_cameras_ = rig.cameras;
+  if (options_.depth_level > 0) full_resolution_cameras_ = rig.cameras;
+  for (size_t c = 0; c < cameras_.size(); ++c) {
+    cameras_[c].sdc.max_depth_jump_m = sdc_depth_jump(options_.sdc.max_depth_jump_m, rig_.cameras[c].depth_intrinsics);
     // Same surface for subsample_depth: the SDC threshold of the full-resolution pixels.
-    subsample_same_surface_m_ = static_cast<float>(sdc_depth_jump_for(rig, options.sdc.max_depth_jump_m));
+    cameras_[c].subsample_same_surface_m = static_cast<float>(sdc_depth_jump(options_.sdc.max_depth_jump_m, rig.cameras[c].depth_intrinsics));
   }
 }
 
@@ -130,7 +118,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
                          " does not match the rig's depth_intrinsics (" + std::to_string(k.width) + "x" + std::to_string(k.height) + ")");
     }
     extract_foreground(raw, rig_.depth_unit_m, full_resolution_cameras_[c], rig_.volume, options_.foreground, s.full_foreground);
-    subsample_depth(s.full_foreground, options_.depth_level, subsample_same_surface_m_, s.foreground);
+    subsample_depth(s.full_foreground, options_.depth_level, s.subsample_same_surface_m, s.foreground);
   });
   if (options_.bilateral) {
     stage(result.times.filter_ms, [&](int, CameraState& s) { bilateral_filter(s.foreground, kernel_, s.filtered, s.filter_scratch, 1); });
@@ -139,7 +127,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     // The depth image is not needed after this: the mesh takes its buffer (extract_foreground and
     // the filter write every pixel of theirs next frame).
     Image<float>& depth = options_.bilateral ? s.filtered : s.foreground;
-    triangulate_sdc_taking_depth(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), options_.sdc, s.mesh);
+    triangulate_sdc_taking_depth(depth, rig_.cameras[c].depth_intrinsics, rig_.cameras[c].world_from_depth.cast<float>(), s.sdc, s.mesh);
   });
   auto color_of = [&](int c) { return frames.cameras[c].has_color ? &frames.cameras[c].color : nullptr; };
   if (options_.mode == ReconstructMode::kSeparate) {
@@ -151,11 +139,10 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     // The zipper colours only the vertices it keeps.
     std::vector<ZipperCamera> inputs(camera_count);
     for (int c = 0; c < camera_count; ++c) {
-      if (active[c]) inputs[c] = {&cameras_[c].mesh, color_of(c), &rig_.cameras[c]};
+      if (active[c]) inputs[c] = {&cameras_[c].mesh, color_of(c), &rig_.cameras[c], cameras_[c].sdc.max_depth_jump_m};
     }
     ZipperOptions zipper = options_.zipper;
     zipper.ownership = options_.ownership();
-    zipper.sdc_max_depth_jump_m = options_.sdc.max_depth_jump_m;
     zipper.num_threads = threads;
     ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_, std::move(result.mesh));
     result.mesh = std::move(zipped.mesh);

@@ -33,12 +33,14 @@ struct ReconstructOptions {
   bool bilateral = true;  // filter depth before triangulation (paper Section III-B)
   ForegroundOptions foreground;
   BilateralOptions filter;
+  // The SDC threshold for a camera of focal length kSdcReferenceFocalPx (a Kinect at 640×480);
+  // each camera's is sdc_depth_jump of it (and its focal length at the level of detail).
   SdcOptions sdc;
-  ZipperOptions zipper;  // sdc_max_depth_jump_m is taken from `sdc`
+  ZipperOptions zipper;  // each camera's SDC threshold is given with it (ZipperCamera)
   // Level of detail: reconstruct from every 2^depth_level-th depth pixel, each the mean of the
   // pixels around it on its surface (subsample_depth; 0 = full resolution; 1 gives a quarter of
   // the triangles). Thresholds in pixels shrink and the SDC depth jump grows with the pixel
-  // spacing (sdc_depth_jump_for); colour is still sampled from the full colour image.
+  // spacing (sdc_depth_jump); colour is still sampled from the full colour image.
   int depth_level = 0;
   int num_threads = 0;  // 0 = all hardware threads
 
@@ -52,14 +54,6 @@ struct ReconstructOptions {
     return bilateral ? Ownership::kBorder : Ownership::kSmoothness;
   }
 };
-
-//! The SDC threshold for `rig`'s cameras (at the resolution they are reconstructed at), from the
-//! threshold for a camera of focal length kSdcReferenceFocalPx: scaled by that over the rig's
-//! longest depth focal length where that is shorter (coarser pixels: slope and quantisation steps
-//! grow), kept where it is longer (finer pixels: the sensor's noise between neighbours stays). A
-//! Kinect at 640×480 keeps it; at 320×240, or every second pixel of one (a level of detail), it
-//! doubles; a RealSense D435 at 640×480 (482 px) takes 1.2 times it; 1280×960 keeps it.
-double sdc_depth_jump_for(const Rig& rig, double reference_jump_m);
 
 //! Wall-clock milliseconds per stage of one frame set (stages run over all cameras in parallel).
 struct StageTimes {
@@ -103,6 +97,8 @@ class FrameReconstructor {
 
  private:
   struct CameraState {
+    SdcOptions sdc;                       // this camera's threshold (sdc_depth_jump)
+    float subsample_same_surface_m = 0;   // depth_level > 0: subsample_depth's same_surface
     Image<float> full_foreground;  // depth_level > 0: the foreground at full resolution, before subsample_depth
     Image<float> foreground;
     Image<float> filtered;
@@ -113,7 +109,6 @@ class FrameReconstructor {
 
   Rig rig_;
   std::vector<CameraModel> full_resolution_cameras_;  // depth_level > 0: rig_'s cameras with the depth images' own intrinsics
-  float subsample_same_surface_m_ = 0;                // depth_level > 0: subsample_depth's same_surface
   ReconstructOptions options_;
   BilateralKernel kernel_;
   std::vector<CameraState> cameras_;

@@ -33,7 +33,7 @@ double largest_depth_jump(const TriangleMesh& mesh, const CameraModel& camera) {
 TEST(Reconstruct, RealCapturesGiveMeshesWithoutJumps) {
   for (const auto& [name, focal] : {std::pair{"pcl-desk", 525.0}, std::pair{"realsense-person", 481.94}}) {
     const Capture capture = Capture::open(kSharedData / name);
-    const double threshold = sdc_depth_jump_for(capture.rig(), 0.03);
+    const double threshold = sdc_depth_jump(0.03, capture.rig().cameras[0].depth_intrinsics);
     EXPECT_NEAR(threshold, 0.03 * 580.0 / focal, 1e-12) << name;
     for (bool bilateral : {false, true}) {
       FrameReconstructor reconstructor(capture.rig(), {.mode = ReconstructMode::kSeparate, .bilateral = bilateral});
@@ -50,6 +50,41 @@ TEST(Reconstruct, RealCapturesGiveMeshesWithoutJumps) {
       EXPECT_EQ(result.cameras_used, 1);
     }
   }
+}
+
+// The SDC threshold follows each camera's focal length: 3 cm at 580 px, scaled up by 580/f for a
+// shorter one, kept for a longer one, and at a level of detail from the subsampled focal length.
+TEST(Reconstruct, SdcThresholdFollowsTheFocalLength) {
+  auto intrinsics = [](double f) { return Intrinsics{.width = 48, .height = 36, .fx = f, .fy = f, .cx = 23.5, .cy = 17.5}; };
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(580)), 0.03);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(290)), 0.06);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(1160)), 0.03);
+  EXPECT_EQ(sdc_depth_jump(0.03, {.width = 48, .height = 36, .fx = 290, .fy = 580}), 0.03);  // the closer-spaced direction
+  // Separate meshes of a depth ramp, one camera each: `step_m` deeper per column from 1 m.
+  auto triangles = [](const std::vector<double>& focal_lengths, double step_m, int depth_level) {
+    Rig rig;
+    FrameSet frames;
+    for (size_t c = 0; c < focal_lengths.size(); ++c) {
+      CameraModel camera;
+      camera.name = "cam" + std::to_string(c);
+      camera.depth_intrinsics = {.width = 48, .height = 36, .fx = focal_lengths[c], .fy = focal_lengths[c], .cx = 23.5, .cy = 17.5};
+      rig.cameras.push_back(camera);
+      DepthImage depth(48, 36);
+      for (int v = 0; v < 36; ++v) {
+        for (int u = 0; u < 48; ++u) depth(u, v) = static_cast<unsigned short>(std::lround(1000.0 * (1.0 + step_m * u)));
+      }
+      frames.cameras.push_back({.has_depth = true, .depth = std::move(depth)});
+    }
+    FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kSeparate, .bilateral = false, .depth_level = depth_level});
+    return reconstructor.reconstruct(frames).mesh.triangle_count();
+  };
+  const size_t every = 2 * 47 * 35;
+  EXPECT_EQ(triangles({290}, 0.04, 0), every);  // 4 cm steps against 6 cm
+  EXPECT_EQ(triangles({580}, 0.04, 0), 0u);     // against 3 cm
+  EXPECT_EQ(triangles({1160}, 0.04, 0), 0u);
+  EXPECT_EQ(triangles({290, 580}, 0.04, 0), every);  // each camera its own threshold
+  // Every second pixel of a 580 px camera is a 290 px one: 5 cm steps against 6 cm.
+  EXPECT_EQ(triangles({580}, 0.025, 1), static_cast<size_t>(2 * 23 * 17));
 }
 
 // Frame 0 of the built-in subject seen by a ring of `cameras` with the Kinect model, true poses.
