@@ -34,7 +34,9 @@ BENCHMARK(BM_Foreground)->Unit(benchmark::kMillisecond);
 void BM_SubsampleDepth(benchmark::State& state) {
   const SambaFrame& f = frame();
   Image<float> out;
-  for (auto _ : state) subsample_depth(f.foreground[0], 1, 0.015f, out);
+  // Same surface: the full-resolution SDC threshold, as FrameReconstructor gives it.
+  const float same_surface = static_cast<float>(sdc_depth_jump(SdcOptions{}.max_depth_jump_m, f.rig.cameras[0].depth_intrinsics));
+  for (auto _ : state) subsample_depth(f.foreground[0], 1, same_surface, out);
 }
 BENCHMARK(BM_SubsampleDepth)->Unit(benchmark::kMillisecond);
 

@@ -47,10 +47,11 @@ inline SambaFrame load_samba_frame(int frame, const std::filesystem::path& captu
   const BilateralKernel kernel(BilateralOptions{});
   for (int c = 0; c < n; ++c) {
     const CameraModel& camera = out.rig.cameras[c];
+    const SdcOptions sdc{.max_depth_jump_m = sdc_depth_jump(SdcOptions{}.max_depth_jump_m, camera.depth_intrinsics)};  // as FrameReconstructor
     extract_foreground(out.frames.cameras[c].depth, out.rig.depth_unit_m, camera, out.rig.volume, {}, out.foreground[c]);
     bilateral_filter(out.foreground[c], kernel, out.filtered[c]);
-    triangulate_sdc(out.foreground[c], camera.depth_intrinsics, camera.world_from_depth.cast<float>(), {}, out.meshes[c]);
-    triangulate_sdc(out.filtered[c], camera.depth_intrinsics, camera.world_from_depth.cast<float>(), {}, out.filtered_meshes[c]);
+    triangulate_sdc(out.foreground[c], camera.depth_intrinsics, camera.world_from_depth.cast<float>(), sdc, out.meshes[c]);
+    triangulate_sdc(out.filtered[c], camera.depth_intrinsics, camera.world_from_depth.cast<float>(), sdc, out.filtered_meshes[c]);
     lookup_colors(out.meshes[c], camera, &out.frames.cameras[c].color, out.colors[c]);
   }
   return out;

@@ -95,9 +95,7 @@ void run_reconstruct(ReconstructArgs& args) {
   stats["options"] = options_json(r.options);
   // The SDC threshold each camera was triangulated with (from max_depth_jump_m and its focal length).
   nlohmann::ordered_json applied_jumps = nlohmann::ordered_json::array();
-  for (const CameraModel& camera : in.rig.cameras) {
-    applied_jumps.push_back(sdc_depth_jump(r.options.sdc.max_depth_jump_m, subsampled_intrinsics(camera.depth_intrinsics, r.options.depth_level)));
-  }
+  for (size_t c = 0; c < in.rig.cameras.size(); ++c) applied_jumps.push_back(reconstruction.reconstructor().max_depth_jump_m(c));
   stats["max_depth_jump_m_per_camera"] = applied_jumps;
   stats["register"] = reconstruction.register_mode();
   stats["pose_updates"] = reconstruction.pose_updates();

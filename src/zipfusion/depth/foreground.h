@@ -59,8 +59,8 @@ void extract_foreground(const DepthImage& raw, double depth_unit_m, const Camera
 //! pixel alone would discard three quarters of the measurements at level 1; the mean keeps their
 //! averaging (the Kinect's noise is σ ≈ 6–14 mm at 2–3 m in the simulator's model) without mixing
 //! a surface with the one behind it. The pixel stays where it was, so the subsampled intrinsics
-//! (subsampled_intrinsics) describe it. Preconditions: same_surface > 0 (the centre then weighs step² and the mean is
-//! defined); (u·step, v·step) inside the image.
+//! (subsampled_intrinsics) describe it. Preconditions: same_surface > 0 (the centre then weighs
+//! step² and the mean is defined); (u·step, v·step) inside the image.
 inline float subsampled_depth(int u, int v, const float* depth, int width, int height, int level, float same_surface) {
   const int step = 1 << level, x0 = u * step, y0 = v * step;
   const float centre = depth[y0 * width + x0];

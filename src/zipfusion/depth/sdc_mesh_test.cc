@@ -176,6 +176,18 @@ TEST(Sdc, AppendCompactsVerticesAndSharesThem) {
   EXPECT_EQ(out.triangles[2].minCoeff(), 4);
 }
 
+// The threshold is the reference at 580 px, scaled up by 580/f for a shorter focal length, kept for
+// a longer one; f is the larger of fx and fy (the closer-spaced direction).
+TEST(Sdc, DepthJumpFollowsTheFocalLength) {
+  auto intrinsics = [](double fx, double fy) { return Intrinsics{.width = 48, .height = 36, .fx = fx, .fy = fy, .cx = 23.5, .cy = 17.5}; };
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(580, 580)), 0.03);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(290, 290)), 0.06);
+  EXPECT_DOUBLE_EQ(sdc_depth_jump(0.03, intrinsics(525, 525)), 0.03 * 580 / 525);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(1160, 1160)), 0.03);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(290, 580)), 0.03);
+  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(580, 290)), 0.03);
+}
+
 TEST(Sdc, ProjectPinholeInvertsUnproject) {
   Rigid3f world_from_depth = Rigid3f::Identity();
   world_from_depth.linear() = Eigen::AngleAxisf(0.3f, Eigen::Vector3f::UnitY()).toRotationMatrix();

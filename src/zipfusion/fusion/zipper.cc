@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 
@@ -103,6 +104,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.levels.resize(levels);
     s.bits_before.resize(levels);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
+    assert(cameras[c].max_depth_jump_m >= 0);
     const float jump = static_cast<float>(cameras[c].max_depth_jump_m > 0 ? cameras[c].max_depth_jump_m : options.sdc_max_depth_jump_m);
     views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.ownership, c, 0, jump};
     for (int level = 1; level <= levels; ++level) {

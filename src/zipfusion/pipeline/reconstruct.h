@@ -95,6 +95,10 @@ class FrameReconstructor {
   //! pose per camera; not during reconstruct().
   void set_poses(const std::vector<Rigid3d>& world_from_depth);
 
+  //! The SDC threshold camera `c` is triangulated with: ReconstructOptions::sdc scaled by its focal
+  //! length at the level of detail (sdc_depth_jump).
+  double max_depth_jump_m(size_t c) const { return cameras_[c].sdc.max_depth_jump_m; }
+
  private:
   struct CameraState {
     SdcOptions sdc;                       // this camera's threshold (sdc_depth_jump)

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/mesh_distance.h"
@@ -52,39 +53,58 @@ TEST(Reconstruct, RealCapturesGiveMeshesWithoutJumps) {
   }
 }
 
-// The SDC threshold follows each camera's focal length: 3 cm at 580 px, scaled up by 580/f for a
-// shorter one, kept for a longer one, and at a level of detail from the subsampled focal length.
-TEST(Reconstruct, SdcThresholdFollowsTheFocalLength) {
-  auto intrinsics = [](double f) { return Intrinsics{.width = 48, .height = 36, .fx = f, .fy = f, .cx = 23.5, .cy = 17.5}; };
-  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(580)), 0.03);
-  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(290)), 0.06);
-  EXPECT_EQ(sdc_depth_jump(0.03, intrinsics(1160)), 0.03);
-  EXPECT_EQ(sdc_depth_jump(0.03, {.width = 48, .height = 36, .fx = 290, .fy = 580}), 0.03);  // the closer-spaced direction
-  // Separate meshes of a depth ramp, one camera each: `step_m` deeper per column from 1 m.
-  auto triangles = [](const std::vector<double>& focal_lengths, double step_m, int depth_level) {
-    Rig rig;
-    FrameSet frames;
-    for (size_t c = 0; c < focal_lengths.size(); ++c) {
-      CameraModel camera;
-      camera.name = "cam" + std::to_string(c);
-      camera.depth_intrinsics = {.width = 48, .height = 36, .fx = focal_lengths[c], .fy = focal_lengths[c], .cx = 23.5, .cy = 17.5};
-      rig.cameras.push_back(camera);
-      DepthImage depth(48, 36);
-      for (int v = 0; v < 36; ++v) {
-        for (int u = 0; u < 48; ++u) depth(u, v) = static_cast<unsigned short>(std::lround(1000.0 * (1.0 + step_m * u)));
-      }
-      frames.cameras.push_back({.has_depth = true, .depth = std::move(depth)});
+// The SDC threshold follows each camera's focal length (sdc_depth_jump, pinned in sdc_mesh_test):
+// 3 cm at 580 px, scaled up by 580/f for a shorter one, kept for a longer one, and at a level of
+// detail taken from the subsampled focal length. Meshes of a depth ramp, `step_m` deeper per column
+// from 1 m, seen by cameras of the given focal lengths, all at the same pose.
+FrameResult ramp_meshes(const std::vector<double>& focal_lengths, double step_m, int depth_level, ReconstructMode mode) {
+  Rig rig;
+  FrameSet frames;
+  for (size_t c = 0; c < focal_lengths.size(); ++c) {
+    CameraModel camera;
+    camera.name = "cam" + std::to_string(c);
+    camera.depth_intrinsics = {.width = 48, .height = 36, .fx = focal_lengths[c], .fy = focal_lengths[c], .cx = 23.5, .cy = 17.5};
+    rig.cameras.push_back(camera);
+    DepthImage depth(48, 36);
+    for (int v = 0; v < 36; ++v) {
+      for (int u = 0; u < 48; ++u) depth(u, v) = static_cast<unsigned short>(std::lround(1000.0 * (1.0 + step_m * u)));
     }
-    FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kSeparate, .bilateral = false, .depth_level = depth_level});
-    return reconstructor.reconstruct(frames).mesh.triangle_count();
+    frames.cameras.push_back({.has_depth = true, .depth = std::move(depth)});
+  }
+  FrameReconstructor reconstructor(rig, {.mode = mode, .bilateral = false, .depth_level = depth_level});
+  for (size_t c = 0; c < focal_lengths.size(); ++c) {
+    const double f = focal_lengths[c] / (1 << depth_level);
+    EXPECT_DOUBLE_EQ(reconstructor.max_depth_jump_m(c), 0.03 * std::max(1.0, 580.0 / f)) << "camera " << c;
+  }
+  return reconstructor.reconstruct(frames);
+}
+
+TEST(Reconstruct, SdcThresholdFollowsTheFocalLength) {
+  auto triangles = [](const std::vector<double>& focal_lengths, double step_m, int depth_level) {
+    return ramp_meshes(focal_lengths, step_m, depth_level, ReconstructMode::kSeparate).mesh.triangle_count();
   };
   const size_t every = 2 * 47 * 35;
   EXPECT_EQ(triangles({290}, 0.04, 0), every);  // 4 cm steps against 6 cm
   EXPECT_EQ(triangles({580}, 0.04, 0), 0u);     // against 3 cm
   EXPECT_EQ(triangles({1160}, 0.04, 0), 0u);
+  EXPECT_EQ(triangles({1160}, 0.02, 0), every);  // a longer focal length keeps 3 cm: not tightened
   EXPECT_EQ(triangles({290, 580}, 0.04, 0), every);  // each camera its own threshold
-  // Every second pixel of a 580 px camera is a 290 px one: 5 cm steps against 6 cm.
+  // Every second pixel of a 580 px camera is a 290 px one: 5 cm steps against 6 cm; every fourth a
+  // 145 px one: 10 cm against 12 cm. A 1160 px camera's second pixel is a 580 px one: 5 cm against 3.
   EXPECT_EQ(triangles({580}, 0.025, 1), static_cast<size_t>(2 * 23 * 17));
+  EXPECT_EQ(triangles({580}, 0.025, 2), static_cast<size_t>(2 * 11 * 8));
+  EXPECT_EQ(triangles({1160}, 0.025, 1), 0u);
+}
+
+// The zipper takes each camera's threshold too: two 290 px cameras at one pose see the 4 cm ramp
+// as one surface, overlap, and come out as one sheet.
+TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
+  const FrameResult result = ramp_meshes({290, 290}, 0.04, 0, ReconstructMode::kZipper);
+  EXPECT_EQ(result.zipper.pairs, 1);
+  EXPECT_GT(result.zipper.redundant_removed, 0);
+  const size_t every = 2 * 47 * 35;
+  EXPECT_GT(result.mesh.triangle_count(), every * 9 / 10);
+  EXPECT_LT(result.mesh.triangle_count(), every * 11 / 10);
 }
 
 // Frame 0 of the built-in subject seen by a ring of `cameras` with the Kinect model, true poses.
