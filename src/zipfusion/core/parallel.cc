@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <deque>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -37,9 +36,14 @@ struct Job {
   std::condition_variable done;
 };
 
+// A block of one parallel_for call: body(i) for i in [begin, end).
 struct Task {
   Job* job;
-  std::function<void()> run;
+  IndexFunctionRef body;
+  int begin, end;
+  void run() const {
+    for (int i = begin; i < end; ++i) body(i);
+  }
 };
 
 // Workers kept for the life of the process: a frame set makes dozens of parallel_for calls, and
@@ -50,6 +54,9 @@ struct Task {
 class ThreadPool {
  public:
   explicit ThreadPool(int workers) {
+    // Room for more blocks than are ever pending at once (each call queues one per worker, and
+    // calls nest a level or two), so that how they interleave never makes the queue grow.
+    queue_.reserve(64 * static_cast<size_t>(workers + 1));
     for (int i = 0; i < workers; ++i) workers_.emplace_back([this](std::stop_token stop) { work(stop); });
   }
 
@@ -65,25 +72,30 @@ class ThreadPool {
 
   int workers() const { return static_cast<int>(workers_.size()); }
 
-  void run(std::vector<std::function<void()>>& blocks) {
+  // Runs body over [begin, end) in `blocks` contiguous blocks: the first here, the others queued.
+  void run(int begin, int end, IndexFunctionRef body, int blocks) {
     Job job;
-    job.remaining = static_cast<int>(blocks.size());
+    job.remaining = blocks;
+    const long long count = end - begin;
+    auto block = [&](int k) {
+      return Task{&job, body, begin + static_cast<int>(count * k / blocks), begin + static_cast<int>(count * (k + 1) / blocks)};
+    };
     {
       std::lock_guard lock(mutex_);
-      for (size_t i = 1; i < blocks.size(); ++i) queue_.push_back({&job, std::move(blocks[i])});
-      queued_ += static_cast<int>(blocks.size()) - 1;
+      for (int k = 1; k < blocks; ++k) queue_.push_back(block(k));
+      queued_ += blocks - 1;
     }
     wake_.notify_all();
-    execute({&job, std::move(blocks[0])});
+    execute(block(0));
     std::unique_lock lock(mutex_);
     while (job.remaining > 0) {
       const auto own = std::find_if(queue_.begin(), queue_.end(), [&](const Task& task) { return task.job == &job; });
       if (own != queue_.end()) {
-        Task task = std::move(*own);
+        const Task task = *own;
         queue_.erase(own);
         --queued_;
         lock.unlock();
-        execute(std::move(task));
+        execute(task);
         lock.lock();
       } else {
         lock.unlock();
@@ -96,7 +108,7 @@ class ThreadPool {
   }
 
  private:
-  void execute(Task task) {
+  void execute(const Task& task) {
     std::exception_ptr error;
     try {
       task.run();
@@ -118,18 +130,20 @@ class ThreadPool {
       }
       wake_.wait(lock, [&] { return stop.stop_requested() || !queue_.empty(); });
       if (stop.stop_requested()) return;
-      Task task = std::move(queue_.front());
-      queue_.pop_front();
+      const Task task = queue_.front();
+      queue_.erase(queue_.begin());
       --queued_;
       lock.unlock();
-      execute(std::move(task));
+      execute(task);
       lock.lock();
     }
   }
 
   std::mutex mutex_;
   std::condition_variable wake_;
-  std::deque<Task> queue_;
+  // Pending blocks, oldest first: a vector, whose capacity stays (a deque allocated a node every
+  // dozen blocks); it holds a few blocks, so erasing at the front costs nothing that matters.
+  std::vector<Task> queue_;
   std::atomic<int> queued_ = 0;  // queue_.size(), written under the mutex, read by spinners without it
   std::vector<std::jthread> workers_;  // last: stopped and joined before the rest is destroyed
 };
@@ -143,7 +157,7 @@ ThreadPool& pool() {
 
 int hardware_threads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
-void parallel_for(int begin, int end, const std::function<void(int)>& body, int num_threads) {
+void parallel_for(int begin, int end, IndexFunctionRef body, int num_threads) {
   const int count = end - begin;
   if (count <= 0) return;
   ThreadPool& workers = pool();
@@ -152,16 +166,7 @@ void parallel_for(int begin, int end, const std::function<void(int)>& body, int 
     for (int i = begin; i < end; ++i) body(i);
     return;
   }
-  std::vector<std::function<void()>> blocks;
-  blocks.reserve(threads);
-  for (int block = 0; block < threads; ++block) {
-    const int lo = begin + static_cast<int>(static_cast<long long>(count) * block / threads);
-    const int hi = begin + static_cast<int>(static_cast<long long>(count) * (block + 1) / threads);
-    blocks.emplace_back([&body, lo, hi] {
-      for (int i = lo; i < hi; ++i) body(i);
-    });
-  }
-  workers.run(blocks);
+  workers.run(begin, end, body, threads);
 }
 
 }  // namespace zipfusion

@@ -42,9 +42,7 @@ ZF_ROW_KERNEL void accumulate_pairs(const float* __restrict p, const float* __re
 
 // The columns [first, last] of a row between its first and last pixel with depth (first > last:
 // none); pixels outside have no depth and so no output.
-struct RowSpan {
-  int first = 0, last = -1;
-};
+using RowSpan = BilateralRowSpan;
 
 RowSpan depth_span(const float* row, int width) {
   RowSpan span{0, width - 1};
@@ -53,30 +51,29 @@ RowSpan depth_span(const float* row, int width) {
   return span;
 }
 
-struct RowSums {
-  std::vector<float> weights, values;
-};
-
 // One output row from the taps that for_each_tap(add) hands out: add(tap_row, offset, spatial)
 // stands for the taps tap_row[u + offset] of every pixel u of the row.
 template <typename ForEachTap>
-void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, RowSums& sums, float* out_row, ForEachTap&& for_each_tap) {
+// `sums`: the row's weight and value sums (resized).
+void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, std::vector<float>& sums, float* out_row,
+                ForEachTap&& for_each_tap) {
   std::fill(out_row, out_row + width, 0.0f);
   const RowSpan span = depth_span(centre_row, width);
   if (span.first > span.last) return;
   const int count = span.last - span.first + 1;
-  sums.weights.assign(count, 0.0f);
-  sums.values.assign(count, 0.0f);
+  sums.assign(2 * static_cast<size_t>(count), 0.0f);
+  float* const weights = sums.data();
+  float* const values = weights + count;
   for_each_tap([&](const float* tap_row, int offset, float spatial) {
     // Only the pixels whose tap lies inside the row.
     const int lo = std::max(span.first, -offset), hi = std::min(span.last, width - 1 - offset);
     if (lo > hi) return;
-    accumulate_taps(centre_row + lo, tap_row + lo + offset, hi - lo + 1, spatial, inv_two_range_sigma2, sums.weights.data() + (lo - span.first),
-                    sums.values.data() + (lo - span.first));
+    accumulate_taps(centre_row + lo, tap_row + lo + offset, hi - lo + 1, spatial, inv_two_range_sigma2, weights + (lo - span.first),
+                    values + (lo - span.first));
   });
   for (int i = 0; i < count; ++i) {
     const float centre = centre_row[span.first + i];
-    out_row[span.first + i] = centre > 0 ? sums.values[i] / sums.weights[i] : 0.0f;
+    out_row[span.first + i] = centre > 0 ? values[i] / weights[i] : 0.0f;
   }
 }
 
@@ -89,7 +86,8 @@ constexpr int kBlockRows = 32;
 // row v (gathered, 2r+1 of them) and the pairs between row v and the r rows below (both sums);
 // pairs reaching below the block go to its r overflow rows, added to the next block's first rows
 // at the end.
-void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch, int num_threads) {
+void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, BilateralScratch& buffers, int num_threads) {
+  Image<float>& scratch = buffers.sums;
   const int width = depth_m.width, height = depth_m.height, r = kernel.radius, side = 2 * r + 1;
   const float inv = kernel.inv_two_range_sigma2;
   const int blocks = (height + kBlockRows - 1) / kBlockRows;
@@ -98,7 +96,8 @@ void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, I
   scratch.height = 0;  // not an image here: the blocks' sums
   scratch.data.resize(2 * plane * blocks);
   auto row_of = [&](int v) { return depth_m.data.data() + static_cast<size_t>(v) * width; };
-  std::vector<RowSpan> spans(height);  // each row's is read by the r rows above it too
+  std::vector<RowSpan>& spans = buffers.row_spans;  // each row's is read by the r rows above it too
+  spans.resize(height);
   for (int v = 0; v < height; ++v) spans[v] = depth_span(row_of(v), width);
   const int threads = std::max(1, std::min(num_threads, blocks));
   parallel_for(0, blocks, [&](int block) {
@@ -178,18 +177,19 @@ BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(optio
   inv_two_range_sigma2 = static_cast<float>(1.0 / (2 * options.range_sigma_m * options.range_sigma_m));
 }
 
-void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch, int num_threads) {
+void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, BilateralScratch& buffers, int num_threads) {
+  Image<float>& scratch = buffers.sums;
   assert(&depth_m != &out && &scratch != &out && &scratch != &depth_m);
   const int width = depth_m.width, height = depth_m.height, r = kernel.radius;
   const float inv = kernel.inv_two_range_sigma2;
   auto row_of = [width](const Image<float>& image, int v) { return image.data.data() + static_cast<size_t>(v) * width; };
   auto out_row_of = [width](Image<float>& image, int v) { return image.data.data() + static_cast<size_t>(v) * width; };
   // Rows in contiguous blocks, one per thread, each with sums of its own.
+  const int threads = std::max(1, std::min(num_threads, height));
+  if (buffers.row_sums.size() < static_cast<size_t>(threads)) buffers.row_sums.resize(threads);
   auto for_rows = [&](auto&& row) {
-    const int threads = std::max(1, std::min(num_threads, height));
     parallel_for(0, threads, [&](int block) {
-      RowSums sums;
-      for (int v = height * block / threads; v < height * (block + 1) / threads; ++v) row(v, sums);
+      for (int v = height * block / threads; v < height * (block + 1) / threads; ++v) row(v, buffers.row_sums[block]);
     }, threads);
   };
   auto resize = [&](Image<float>& image) {
@@ -199,18 +199,18 @@ void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel
   };
   resize(out);
   if (!kernel.separable) {
-    filter_square(depth_m, kernel, out, scratch, num_threads);
+    filter_square(depth_m, kernel, out, buffers, num_threads);
     return;
   }
   // A row pass into `scratch`, then a column pass over it.
   resize(scratch);
-  for_rows([&](int v, RowSums& sums) {
+  for_rows([&](int v, std::vector<float>& sums) {
     const float* centre_row = row_of(depth_m, v);
     filter_row(centre_row, width, inv, sums, out_row_of(scratch, v), [&](auto&& add) {
       for (int dx = -r; dx <= r; ++dx) add(centre_row, dx, kernel.spatial_1d[dx + r]);
     });
   });
-  for_rows([&](int v, RowSums& sums) {
+  for_rows([&](int v, std::vector<float>& sums) {
     filter_row(row_of(scratch, v), width, inv, sums, out_row_of(out, v), [&](auto&& add) {
       for (int dy = std::max(-r, -v); dy <= std::min(r, height - 1 - v); ++dy) add(row_of(scratch, v + dy), 0, kernel.spatial_1d[dy + r]);
     });
@@ -218,7 +218,7 @@ void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel
 }
 
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads) {
-  Image<float> scratch;
+  BilateralScratch scratch;
   bilateral_filter(depth_m, kernel, out, scratch, num_threads);
 }
 

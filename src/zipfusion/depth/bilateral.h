@@ -74,12 +74,23 @@ inline float bilateral_pixel(int u, int v, const float* depth, int width, int he
   return value_sum / weight_sum;
 }
 
-//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input;
-//! `scratch` holds the separable filter's row pass.
-void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, Image<float>& scratch,
+//! The first and last pixel with depth of a row (first > last: none).
+struct BilateralRowSpan {
+  int first = 0, last = -1;
+};
+
+//! Buffers bilateral_filter reuses from one call to the next: once grown, it allocates nothing.
+struct BilateralScratch {
+  Image<float> sums;                         // the square window's per-block sums, or the separable row pass
+  std::vector<BilateralRowSpan> row_spans;   // square window: each row's
+  std::vector<std::vector<float>> row_sums;  // separable: per block of rows, weights then values
+};
+
+//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input.
+void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, BilateralScratch& scratch,
                       int num_threads = 1);
 
-//! As above, with a scratch image of its own.
+//! As above, with scratch buffers of its own.
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, int num_threads = 1);
 
 }  // namespace zipfusion

@@ -94,7 +94,8 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   result.mesh.colors.clear();
   result.mesh.triangles.clear();
   const int camera_count = static_cast<int>(rig_.cameras.size());
-  std::vector<bool> active(camera_count, false);
+  std::vector<char>& active = active_;
+  active.assign(camera_count, 0);
   for (int c = 0; c < camera_count; ++c) active[c] = c < static_cast<int>(frames.cameras.size()) && frames.cameras[c].has_depth;
   const int threads = options_.num_threads;
 
@@ -137,7 +138,8 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   for (int c = 0; c < camera_count; ++c) result.cameras_used += active[c];
   if (options_.mode == ReconstructMode::kZipper) {
     // The zipper colours only the vertices it keeps.
-    std::vector<ZipperCamera> inputs(camera_count);
+    std::vector<ZipperCamera>& inputs = zipper_inputs_;
+    inputs.assign(camera_count, ZipperCamera{});
     for (int c = 0; c < camera_count; ++c) {
       if (active[c]) inputs[c] = {&cameras_[c].mesh, color_of(c), &rig_.cameras[c], cameras_[c].sdc.max_depth_jump_m};
     }

@@ -106,7 +106,7 @@ class FrameReconstructor {
     Image<float> full_foreground;  // depth_level > 0: the foreground at full resolution, before subsample_depth
     Image<float> foreground;
     Image<float> filtered;
-    Image<float> filter_scratch;
+    BilateralScratch filter_scratch;
     DepthMesh mesh;
     std::vector<Rgb8> colors;  // per pixel, for separate meshes (the zipper colours its own vertices)
   };
@@ -117,6 +117,8 @@ class FrameReconstructor {
   BilateralKernel kernel_;
   std::vector<CameraState> cameras_;
   std::vector<int> vertex_of_pixel_;
+  std::vector<char> active_;                 // per camera: has depth in this frame set
+  std::vector<ZipperCamera> zipper_inputs_;
   ZipperScratch zipper_scratch_;
   std::mutex spare_mutex_;
   std::vector<TriangleMesh> spare_meshes_;  // recycled, at most kSpareMeshes

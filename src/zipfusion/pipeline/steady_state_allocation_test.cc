@@ -1,0 +1,123 @@
+// Steady state allocates nothing per frame set (issue 6): every allocation in this test binary is
+// counted by replacing the global operator new, and a FrameReconstructor runs the same samba-4cam
+// frame sets twice: the first pass grows its buffers, the second must not allocate (separate
+// meshes) or must allocate nothing the size of an image (zipper: CGAL's constrained Delaunay
+// triangulation and OpenCV's morphology allocate inside every call; docs/design.md).
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <new>
+
+#include "zipfusion/io/capture.h"
+#include "zipfusion/pipeline/reconstruct.h"
+
+namespace {
+
+std::atomic<long long> g_allocations{0};
+std::atomic<long long> g_bytes{0};
+std::atomic<size_t> g_largest{0};
+
+void* counted_allocation(std::size_t size, std::size_t alignment) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  g_bytes.fetch_add(static_cast<long long>(size), std::memory_order_relaxed);
+  size_t largest = g_largest.load(std::memory_order_relaxed);
+  while (size > largest && !g_largest.compare_exchange_weak(largest, size, std::memory_order_relaxed)) {
+  }
+  const std::size_t padded = (size + alignment - 1) / alignment * alignment;
+  return alignment <= alignof(std::max_align_t) ? std::malloc(size ? size : 1) : std::aligned_alloc(alignment, padded ? padded : alignment);
+}
+
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (void* p = counted_allocation(size, alignof(std::max_align_t))) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size) { return operator new(size); }
+void* operator new(std::size_t size, std::align_val_t alignment) {
+  if (void* p = counted_allocation(size, static_cast<std::size_t>(alignment))) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size, std::align_val_t alignment) { return operator new(size, alignment); }
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept { return counted_allocation(size, alignof(std::max_align_t)); }
+void* operator new[](std::size_t size, const std::nothrow_t&) noexcept { return counted_allocation(size, alignof(std::max_align_t)); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+namespace zipfusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSamba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
+
+struct Allocations {
+  long long count = 0;
+  long long bytes = 0;
+  size_t largest = 0;
+};
+
+// What reconstructing `frames` once more allocates, after a first pass over the same frame sets.
+// Meshes go back to the reconstructor after each frame set, as the pipeline's sink does.
+Allocations steady_state_allocations(const std::vector<FrameSet>& frames, const ReconstructOptions& options) {
+  FrameReconstructor reconstructor(read_rig(kSamba / "ground_truth" / "rig.json"), options);
+  auto pass = [&] {
+    for (const FrameSet& frame : frames) {
+      FrameResult result = reconstructor.reconstruct(frame);
+      EXPECT_GT(result.mesh.triangle_count(), 100000u);
+      reconstructor.recycle(std::move(result.mesh));
+    }
+  };
+  pass();
+  const long long count = g_allocations.load(), bytes = g_bytes.load();
+  g_largest = 0;
+  pass();
+  return {g_allocations.load() - count, g_bytes.load() - bytes, g_largest.load()};
+}
+
+class SteadyState : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const Capture capture = Capture::open(kSamba);
+    for (int f = 0; f < 3; ++f) frames_.push_back(capture.load_frame(f * 10));
+  }
+  static void TearDownTestSuite() { frames_.clear(); }
+  static std::vector<FrameSet> frames_;
+};
+std::vector<FrameSet> SteadyState::frames_;
+
+TEST_F(SteadyState, SeparateMeshesAllocateNothing) {
+  for (const auto& [bilateral, separable] : {std::pair{false, false}, std::pair{true, false}, std::pair{true, true}}) {
+    ReconstructOptions options{.mode = ReconstructMode::kSeparate, .bilateral = bilateral};
+    options.filter.separable = separable;
+    const Allocations a = steady_state_allocations(frames_, options);
+    EXPECT_EQ(a.count, 0) << "bilateral " << bilateral << " separable " << separable << ": " << a.bytes << " bytes, largest " << a.largest;
+  }
+}
+
+// The zipper's seams are triangulated by CGAL, whose triangulation allocates as it grows and
+// whose constraint insertion allocates lists; OpenCV's dilation and erosion allocate their filter
+// objects. None of that is the size of an image: a buffer that is (640×480 floats are 1.2 MB) must
+// be kept in a scratch between frames.
+TEST_F(SteadyState, ZipperAllocatesNoImageSizedBuffer) {
+  constexpr size_t kLargestAllowed = 256 * 1024;
+  for (bool bilateral : {false, true}) {
+    const Allocations a = steady_state_allocations(frames_, {.mode = ReconstructMode::kZipper, .bilateral = bilateral});
+    EXPECT_LT(a.largest, kLargestAllowed) << "bilateral " << bilateral;
+    std::printf("zipper, bilateral %d: %.0f allocations and %.0f bytes a frame set, the largest %zu bytes\n", bilateral,
+                static_cast<double>(a.count) / static_cast<double>(frames_.size()), static_cast<double>(a.bytes) / static_cast<double>(frames_.size()),
+                a.largest);
+  }
+}
+
+}  // namespace
+}  // namespace zipfusion
