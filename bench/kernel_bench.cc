@@ -52,7 +52,7 @@ void BM_TriangulateSdc(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh mesh;
   for (auto _ : state) {
-    triangulate_sdc(f.foreground[0], f.rig.cameras[0].depth_intrinsics, f.rig.cameras[0].world_from_depth.cast<float>(), {}, mesh);
+    triangulate_sdc(f.foreground[0], f.rig.cameras[0].depth_intrinsics, f.rig.cameras[0].world_from_depth.cast<float>(), f.sdc[0], mesh);
   }
 }
 BENCHMARK(BM_TriangulateSdc)->Unit(benchmark::kMillisecond);
@@ -110,7 +110,7 @@ void BM_ZipperFourCameras(benchmark::State& state) {
     state.PauseTiming();
     meshes = input;  // zippering clears bits: start each iteration from the same meshes
     std::vector<ZipperCamera> cameras;
-    for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.frames.cameras[c].color, &f.rig.cameras[c]});
+    for (size_t c = 0; c < meshes.size(); ++c) cameras.push_back({&meshes[c], &f.frames.cameras[c].color, &f.rig.cameras[c], f.sdc[c].max_depth_jump_m});
     state.ResumeTiming();
     ZipperResult result = zipper_meshes(cameras, options, scratch, std::move(reused));
     benchmark::DoNotOptimize(result.mesh.triangles.data());

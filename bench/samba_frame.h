@@ -23,6 +23,7 @@ struct SambaFrame {
   std::vector<Image<float>> foreground, filtered;
   std::vector<DepthMesh> meshes, filtered_meshes;
   std::vector<std::vector<Rgb8>> colors;
+  std::vector<SdcOptions> sdc;  // each camera's SDC threshold, as FrameReconstructor gives it (sdc_depth_jump)
 };
 
 inline std::filesystem::path samba_capture_path() { return std::filesystem::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam"; }
@@ -47,7 +48,7 @@ inline SambaFrame load_samba_frame(int frame, const std::filesystem::path& captu
   const BilateralKernel kernel(BilateralOptions{});
   for (int c = 0; c < n; ++c) {
     const CameraModel& camera = out.rig.cameras[c];
-    const SdcOptions sdc{.max_depth_jump_m = sdc_depth_jump(SdcOptions{}.max_depth_jump_m, camera.depth_intrinsics)};  // as FrameReconstructor
+    const SdcOptions& sdc = out.sdc.emplace_back(SdcOptions{.max_depth_jump_m = sdc_depth_jump(SdcOptions{}.max_depth_jump_m, camera.depth_intrinsics)});
     extract_foreground(out.frames.cameras[c].depth, out.rig.depth_unit_m, camera, out.rig.volume, {}, out.foreground[c]);
     bilateral_filter(out.foreground[c], kernel, out.filtered[c]);
     triangulate_sdc(out.foreground[c], camera.depth_intrinsics, camera.world_from_depth.cast<float>(), sdc, out.meshes[c]);

@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
   for (int r = 0; r < repeat; ++r) {
     std::vector<DepthMesh> work = meshes;  // zippering clears bits
     std::vector<ZipperCamera> cameras;
-    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.frames.cameras[c].color, &samba.rig.cameras[c]});
+    for (int c = 0; c < n; ++c) cameras.push_back({&work[c], &samba.frames.cameras[c].color, &samba.rig.cameras[c], samba.sdc[c].max_depth_jump_m});
     result = zipper_meshes(cameras, options, scratch, std::move(result.mesh));  // as the pipeline reuses its meshes
     for (size_t k = 0; k < stages.size(); ++k) stage_ms[k].push_back(result.stats.*stages[k].second);
   }

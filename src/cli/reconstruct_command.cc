@@ -95,7 +95,7 @@ void run_reconstruct(ReconstructArgs& args) {
   stats["options"] = options_json(r.options);
   // The SDC threshold each camera was triangulated with (from max_depth_jump_m and its focal length).
   nlohmann::ordered_json applied_jumps = nlohmann::ordered_json::array();
-  for (size_t c = 0; c < in.rig.cameras.size(); ++c) applied_jumps.push_back(reconstruction.reconstructor().max_depth_jump_m(c));
+  for (int c = 0; c < static_cast<int>(in.rig.cameras.size()); ++c) applied_jumps.push_back(reconstruction.reconstructor().max_depth_jump_m(c));
   stats["max_depth_jump_m_per_camera"] = applied_jumps;
   stats["register"] = reconstruction.register_mode();
   stats["pose_updates"] = reconstruction.pose_updates();

@@ -52,9 +52,9 @@ RowSpan depth_span(const float* row, int width) {
 }
 
 // One output row from the taps that for_each_tap(add) hands out: add(tap_row, offset, spatial)
-// stands for the taps tap_row[u + offset] of every pixel u of the row.
+// stands for the taps tap_row[u + offset] of every pixel u of the row. `sums`: the row's weight
+// and value sums (resized).
 template <typename ForEachTap>
-// `sums`: the row's weight and value sums (resized).
 void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, std::vector<float>& sums, float* out_row,
                 ForEachTap&& for_each_tap) {
   std::fill(out_row, out_row + width, 0.0f);

@@ -86,7 +86,8 @@ struct BilateralScratch {
   std::vector<std::vector<float>> row_sums;  // separable: per block of rows, weights then values
 };
 
-//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input.
+//! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input;
+//! `scratch` serves one call at a time.
 void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel, Image<float>& out, BilateralScratch& scratch,
                       int num_threads = 1);
 

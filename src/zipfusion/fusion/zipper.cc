@@ -166,6 +166,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // go; counting the bit matrices before and after took a quarter of a millisecond on one thread).
   std::vector<int> propagated_to_full(camera_count, 0);
   std::vector<int> removed_at_full(result.pairs.size(), 0);
+  // Each finer level starts its frontier from its boundary; the coarsest level's sweeps (whole
+  // first sweeps) only add to it, onto the previous frame's, which then grew it again.
+  for (int c : active) scratch.cameras[c].frbr.frontier.clear();
   for (int level = levels; level >= 0; --level) {
     if (level < levels) {
       parallel_for(0, static_cast<int>(active.size()), [&](int i) {

@@ -9,6 +9,7 @@
 //! Thread safety: reconstruct() and set_poses() from one thread at a time (reconstruct() is not
 //! reentrant); recycle() from any thread. Neither copyable nor movable (it holds a mutex).
 
+#include <cassert>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -97,7 +98,10 @@ class FrameReconstructor {
 
   //! The SDC threshold camera `c` is triangulated with: ReconstructOptions::sdc scaled by its focal
   //! length at the level of detail (sdc_depth_jump).
-  double max_depth_jump_m(size_t c) const { return cameras_[c].sdc.max_depth_jump_m; }
+  double max_depth_jump_m(int c) const {
+    assert(c >= 0 && c < static_cast<int>(cameras_.size()));
+    return cameras_[c].sdc.max_depth_jump_m;
+  }
 
  private:
   struct CameraState {

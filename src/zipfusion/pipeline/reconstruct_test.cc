@@ -72,7 +72,7 @@ FrameResult ramp_meshes(const std::vector<double>& focal_lengths, double step_m,
     frames.cameras.push_back({.has_depth = true, .depth = std::move(depth)});
   }
   FrameReconstructor reconstructor(rig, {.mode = mode, .bilateral = false, .depth_level = depth_level});
-  for (size_t c = 0; c < focal_lengths.size(); ++c) {
+  for (int c = 0; c < static_cast<int>(focal_lengths.size()); ++c) {
     const double f = focal_lengths[c] / (1 << depth_level);
     EXPECT_DOUBLE_EQ(reconstructor.max_depth_jump_m(c), 0.03 * std::max(1.0, 580.0 / f)) << "camera " << c;
   }
@@ -97,9 +97,11 @@ TEST(Reconstruct, SdcThresholdFollowsTheFocalLength) {
 }
 
 // The zipper takes each camera's threshold too: two 290 px cameras at one pose see the 4 cm ramp
-// as one surface, overlap, and come out as one sheet.
+// as one surface, overlap, and come out as one sheet; a 580 px camera beside them sees no surface.
+// (The zipper's coarse levels need the 290 px threshold: with camera 0's, the smallest or the
+// 3 cm fallback for all, they hold no triangles and no pair is found.)
 TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
-  const FrameResult result = ramp_meshes({290, 290}, 0.04, 0, ReconstructMode::kZipper);
+  const FrameResult result = ramp_meshes({580, 290, 290}, 0.04, 0, ReconstructMode::kZipper);
   EXPECT_EQ(result.zipper.pairs, 1);
   EXPECT_GT(result.zipper.redundant_removed, 0);
   const size_t every = 2 * 47 * 35;
