@@ -34,8 +34,8 @@ BENCHMARK(BM_Foreground)->Unit(benchmark::kMillisecond);
 void BM_SubsampleDepth(benchmark::State& state) {
   const SambaFrame& f = frame();
   Image<float> out;
-  // Same surface: the full-resolution SDC threshold, as FrameReconstructor gives it.
-  const float same_surface = static_cast<float>(sdc_depth_jump(SdcOptions{}.max_depth_jump_m, f.rig.cameras[0].depth_intrinsics));
+  // Same surface: the camera's full-resolution SDC threshold, as FrameReconstructor gives it.
+  const float same_surface = static_cast<float>(f.sdc[0].max_depth_jump_m);
   for (auto _ : state) subsample_depth(f.foreground[0], 1, same_surface, out);
 }
 BENCHMARK(BM_SubsampleDepth)->Unit(benchmark::kMillisecond);

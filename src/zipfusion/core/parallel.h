@@ -34,9 +34,9 @@ int hardware_threads();
 //! Calls body(i) for every i in [begin, end), spread over up to num_threads threads
 //! (0 = hardware_threads()). Indices are split into contiguous blocks, one per thread; each
 //! body call must write only its own output. `body` itself (not a copy) is called from several
-//! threads at once. Blocks until all calls return; the first exception
-//! thrown by a body is rethrown here after all threads have stopped. Allocates nothing once the
-//! pool's queue has grown to the most blocks ever pending at once.
+//! threads at once. Blocks until all calls return; the first exception thrown by a body is
+//! rethrown here after all threads have stopped. Allocates nothing once the pool's queue has
+//! grown to the most blocks ever pending at once.
 void parallel_for(int begin, int end, IndexFunctionRef body, int num_threads = 0);
 
 }  // namespace zipfusion

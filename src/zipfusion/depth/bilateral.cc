@@ -40,8 +40,7 @@ ZF_ROW_KERNEL void accumulate_pairs(const float* __restrict p, const float* __re
   }
 }
 
-// The columns [first, last] of a row between its first and last pixel with depth (first > last:
-// none); pixels outside have no depth and so no output.
+// Pixels outside a row's span have no depth and so no output.
 using RowSpan = BilateralRowSpan;
 
 RowSpan depth_span(const float* row, int width) {
