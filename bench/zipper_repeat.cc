@@ -71,8 +71,10 @@ int main(int argc, char** argv) {
   }
   const std::vector<DepthMesh>& meshes = filtered ? samba.filtered_meshes : samba.meshes;
   const int n = static_cast<int>(meshes.size());
-  // The reconstruction's default ownership for each input.
-  const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness, .num_threads = threads};
+  // The reconstruction's default ownership and seam smoothing for each input.
+  const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness,
+                              .seam_smoothing_px = filtered ? 0 : 2,
+                              .num_threads = threads};
   ZipperScratch scratch;
   // Per stage, as ZipperStats names them, the times of every call.
   const std::vector<std::pair<const char*, double ZipperStats::*>> stages{

@@ -68,6 +68,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "seam-smoothing: must be in [0, 4] pixels"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
@@ -97,13 +98,16 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   std::ifstream in(fs::path(zipper) / "stats.json");
   const nlohmann::json stats = nlohmann::json::parse(in);
   ASSERT_EQ(stats["frames"].size(), 2u);
-  // --ownership auto is resolved by the filter and recorded as used: border with the bilateral
-  // filter (the default), smoothness without a filter.
+  // --ownership and --seam-smoothing auto are resolved by the filter and recorded as used: border
+  // and 0 with the bilateral filter (the default), smoothness and 2 without a filter.
   EXPECT_EQ(stats["options"]["ownership"], "border");
+  EXPECT_EQ(stats["options"]["seam_smoothing_px"], 0);
   const std::string unfiltered = (dir_ / "unfiltered").string();
   ASSERT_EQ(run("reconstruct " + capture + " --out " + unfiltered + " --frames 1:2 --filter none").exit_code, 0);
-  std::ifstream unfiltered_stats(fs::path(unfiltered) / "stats.json");
-  EXPECT_EQ(nlohmann::json::parse(unfiltered_stats)["options"]["ownership"], "smoothness");
+  std::ifstream unfiltered_stats_file(fs::path(unfiltered) / "stats.json");
+  const nlohmann::json unfiltered_stats = nlohmann::json::parse(unfiltered_stats_file);
+  EXPECT_EQ(unfiltered_stats["options"]["ownership"], "smoothness");
+  EXPECT_EQ(unfiltered_stats["options"]["seam_smoothing_px"], 2);
   for (const auto& f : stats["frames"]) {
     EXPECT_EQ(f["cameras_used"], 4);
     EXPECT_GT(f["ms"]["total"].get<double>(), 0.0);

@@ -186,6 +186,44 @@ int count_non_manifold_edges(const TriangleMesh& mesh) {
   return count;
 }
 
+int count_folded_edges(const TriangleMesh& mesh) {
+  // Each directed edge as (undirected key, triangle and whether it runs from the lower index).
+  struct EdgeUse {
+    std::uint64_t key;
+    int triangle;
+    bool forward;
+  };
+  std::vector<EdgeUse> uses;
+  uses.reserve(3 * mesh.triangles.size());
+  std::vector<Eigen::Vector3f> normals(mesh.triangles.size());
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const Eigen::Vector3i& t = mesh.triangles[i];
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    const Eigen::Vector3f& a = mesh.positions[t[0]];
+    normals[i] = (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a);
+    if (!(normals[i].squaredNorm() > 0)) continue;
+    normals[i].normalize();
+    for (int k = 0; k < 3; ++k) {
+      const auto from = static_cast<std::uint32_t>(t[k]), to = static_cast<std::uint32_t>(t[(k + 1) % 3]);
+      uses.push_back({static_cast<std::uint64_t>(std::min(from, to)) << 32 | std::max(from, to), static_cast<int>(i), from < to});
+    }
+  }
+  std::sort(uses.begin(), uses.end(), [](const EdgeUse& x, const EdgeUse& y) { return x.key < y.key || (x.key == y.key && x.triangle < y.triangle); });
+  int count = 0;
+  for (size_t i = 0; i < uses.size();) {
+    size_t j = i + 1;
+    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
+    if (j - i == 2) {
+      // Consistently oriented neighbours run the edge in opposite directions; a pair that runs it
+      // the same way is compared as if the second were turned over.
+      const float sign = uses[i].forward != uses[i + 1].forward ? 1.0f : -1.0f;
+      count += sign * normals[uses[i].triangle].dot(normals[uses[i + 1].triangle]) < -0.5f;
+    }
+    i = j;
+  }
+  return count;
+}
+
 double surface_area(const TriangleMesh& mesh) {
   double area = 0;
   for (const Eigen::Vector3i& t : mesh.triangles) area += triangle_area(mesh.positions[t[0]], mesh.positions[t[1]], mesh.positions[t[2]]);
@@ -208,6 +246,7 @@ FrameQuality evaluate_frame(const TriangleMesh& reconstruction, const TriangleMe
   q.large_components = static_cast<int>(std::count_if(components.triangle_counts.begin(), components.triangle_counts.end(),
                                                       [&](int n) { return n >= options.min_component_triangles; }));
   q.non_manifold_edges = count_non_manifold_edges(recon);
+  q.folded_edges = count_folded_edges(recon);
 
   // --- Distance structures and the truth as each camera sees it, built side by side -------------
   const int cameras = static_cast<int>(true_rig.cameras.size());

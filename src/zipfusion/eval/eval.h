@@ -59,6 +59,7 @@ struct FrameQuality {
   int components = 0;            // connected components (triangles sharing a vertex index) inside the volume
   int large_components = 0;      // ... with at least min_component_triangles triangles
   int non_manifold_edges = 0;    // edges (vertex-index pairs) shared by more than two triangles
+  int folded_edges = 0;          // edges where the surface folds back on itself (count_folded_edges)
   double color_error = 0;        // mean |vertex colour − true colour| per channel, 8-bit levels, over the vertices
                                  // within color_max_distance_m of the truth (true colour interpolated
                                  // barycentrically on the closest true triangle); NaN if either mesh has no
@@ -89,6 +90,13 @@ MeshComponents connected_components(const TriangleMesh& mesh);
 //! Undirected edges (vertex-index pairs) used by more than two triangles. Triangles that repeat
 //! a vertex index are skipped.
 int count_non_manifold_edges(const TriangleMesh& mesh);
+
+//! Edges (vertex-index pairs) shared by exactly two triangles whose normals, both oriented as the
+//! first triangle orients the edge, are more than 120° apart: there the surface turns back on
+//! itself (a fold, or a crease sharper than 60°), which a smooth surface sampled at a depth
+//! camera's pixel spacing does not. Triangles that repeat a vertex index or have no area are
+//! skipped.
+int count_folded_edges(const TriangleMesh& mesh);
 
 //! Total triangle area, square metres.
 double surface_area(const TriangleMesh& mesh);

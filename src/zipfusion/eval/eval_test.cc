@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <numbers>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/mesh_io.h"
@@ -196,6 +197,43 @@ TEST(Eval, NonManifoldEdges) {
   EXPECT_EQ(q.vertices, 6);
   // The square itself is a manifold with boundary.
   EXPECT_EQ(count_non_manifold_edges(square(0)), 0);
+}
+
+// Two triangles on the edge (0,0,0)–(1,0,0): the first in the plane z = 0, the second's far corner
+// at `angle_deg` from the first's (0: the flat continuation across the edge, 180: folded back
+// onto the first).
+TriangleMesh hinge(double angle_deg, bool consistent = true) {
+  const double a = angle_deg * std::numbers::pi / 180;
+  TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0.5f, 1, 0}, {0.5f, static_cast<float>(-std::cos(a)), static_cast<float>(std::sin(a))}};
+  mesh.triangles = {{0, 1, 2}, consistent ? Eigen::Vector3i(1, 0, 3) : Eigen::Vector3i(0, 1, 3)};
+  return mesh;
+}
+
+TEST(Eval, FoldedEdges) {
+  // The normals are `angle` apart: folded beyond 120°.
+  for (const double angle : {0.0, 45.0, 90.0, 119.0}) {
+    EXPECT_EQ(count_folded_edges(hinge(angle)), 0) << angle;
+    EXPECT_EQ(count_folded_edges(hinge(angle, false)), 0) << angle << ", the second turned over";
+  }
+  for (const double angle : {121.0, 150.0, 179.0}) {
+    EXPECT_EQ(count_folded_edges(hinge(angle)), 1) << angle;
+    EXPECT_EQ(count_folded_edges(hinge(angle, false)), 1) << angle << ", the second turned over";
+  }
+  // A third triangle on the edge makes it non-manifold, not folded; a triangle without area
+  // folds nothing.
+  TriangleMesh three = hinge(150);
+  three.positions.emplace_back(0.5f, 0, -1);
+  three.triangles.emplace_back(0, 1, 4);
+  EXPECT_EQ(count_folded_edges(three), 0);
+  TriangleMesh flat = hinge(150);
+  flat.positions[3] = {0.5f, 0, 0};
+  EXPECT_EQ(count_folded_edges(flat), 0);
+  // The grid of a square, and evaluate_frame reports the count.
+  EXPECT_EQ(count_folded_edges(grid_square(0, 0.1, 0, 0.1, 0, 4)), 0);
+  TriangleMesh folded = hinge(160);
+  for (Eigen::Vector3f& p : folded.positions) p = 0.1f * p + Eigen::Vector3f(0, 0, 1);
+  EXPECT_EQ(evaluate_frame(folded, square(0), one_camera_rig(), std::nullopt).folded_edges, 1);
 }
 
 TEST(Eval, ConnectedComponentsLabelTriangles) {

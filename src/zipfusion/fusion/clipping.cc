@@ -213,11 +213,11 @@ bool mark_constrained(Delaunay& triangulation, Delaunay::Vertex_handle from, Del
   return true;
 }
 
-// Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a 5×5
-// window) on the same surface (within the view's SDC threshold), in the camera frame.
-Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel) {
+// Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a
+// (2·radius + 1)² window) on the same surface (within the view's SDC threshold), in the camera
+// frame.
+Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, int radius) {
   const float same_surface = view.same_surface;
-  constexpr int kRadius = 2;
   const DepthMesh& mesh = *view.mesh;
   const int u = pixel % mesh.width, v = pixel / mesh.width;
   const float centre = mesh.depth[pixel];
@@ -230,15 +230,15 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel) {
     sum += same ? z : 0.0f;
     count += same;
   };
-  if (u >= kRadius && v >= kRadius && u + kRadius < mesh.width && v + kRadius < mesh.height) {
-    const float* row = mesh.depth.data() + pixel - kRadius * mesh.width - kRadius;
-    for (int y = 0; y <= 2 * kRadius; ++y, row += mesh.width) {
-      for (int x = 0; x <= 2 * kRadius; ++x) add(row[x]);
+  if (u >= radius && v >= radius && u + radius < mesh.width && v + radius < mesh.height) {
+    const float* row = mesh.depth.data() + pixel - radius * mesh.width - radius;
+    for (int y = 0; y <= 2 * radius; ++y, row += mesh.width) {
+      for (int x = 0; x <= 2 * radius; ++x) add(row[x]);
     }
   } else {
-    for (int y = std::max(0, v - kRadius); y <= std::min(mesh.height - 1, v + kRadius); ++y) {
+    for (int y = std::max(0, v - radius); y <= std::min(mesh.height - 1, v + radius); ++y) {
       const float* row = mesh.depth.data() + y * mesh.width;
-      for (int x = std::max(0, u - kRadius); x <= std::min(mesh.width - 1, u + kRadius); ++x) add(row[x]);
+      for (int x = std::max(0, u - radius); x <= std::min(mesh.width - 1, u + radius); ++x) add(row[x]);
     }
   }
   return unproject(view.intrinsics, static_cast<float>(u), static_cast<float>(v), sum / static_cast<float>(count));
@@ -292,22 +292,22 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const std::vector<std::pair<int, int>>& constraints = taken.constraints;
   if (seam.vertices.size() < 3) return;
 
-  // The seam vertices' points, formed once from their depth: each face reads three.
-  std::vector<Eigen::Vector3f> positions(seam.vertices.size());
+  // Where the seam puts its points, formed once (each face reads three): each on its own pixel's
+  // ray at the mean depth of the surface around it. Unfiltered, noise moves a point along its
+  // camera's ray, which a view from another direction sees as a sideways shift larger than the
+  // pixel spacing (about 7 mm for the Kinect's 1 cm at 2.5 m, seen from 45°): the grid would fold
+  // over and the kept edges cross. The mean keeps the layout as regular as the pixel grid. The
+  // output takes the same positions: where it kept the measured ones, a face the layout saw from
+  // the front could face away in 3-D, folded over its neighbours.
+  std::vector<Eigen::Vector3f>& positions = seam.positions;
+  positions.resize(seam.vertices.size());
+  const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     const PixelVertex& v = seam.vertices[i];
-    positions[i] = (v.camera == a.camera ? a.mesh : b.mesh)->point(v.pixel);
+    const bool in_a = v.camera == a.camera;
+    positions[i] = options.smoothing_radius == 0 ? (in_a ? a.mesh : b.mesh)->point(v.pixel)
+                                                 : (in_a ? world_from_a : world_from_b) * smoothed_camera_point(in_a ? a : b, v.pixel, options.smoothing_radius);
   }
-  // Where the seam points are laid out in 2-D: each on its own pixel's ray at the mean depth of
-  // the surface around it. Noise moves a point along its camera's ray, which a view from another
-  // direction sees as a sideways shift larger than the pixel spacing (about 7 mm for the Kinect's
-  // 1 cm at 2.5 m, seen from 45°): the grid would fold over and the kept edges cross. The mean
-  // keeps the layout as regular as the pixel grid; the output keeps the measured points.
-  const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
-  auto layout_position = [&](const PixelVertex& v) -> Eigen::Vector3f {
-    const MeshView& view = v.camera == a.camera ? a : b;
-    return (v.camera == a.camera ? world_from_a : world_from_b) * smoothed_camera_point(view, v.pixel);
-  };
 
   // The virtual camera halfway between the two.
   const Eigen::Quaternionf rotation_a(a.depth_from_world.linear().transpose());
@@ -319,7 +319,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   points.reserve(seam.vertices.size());
   bool behind = false;
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
-    const Eigen::Vector3f q = world_from_virtual.transpose() * (layout_position(seam.vertices[i]) - viewpoint);
+    const Eigen::Vector3f q = world_from_virtual.transpose() * (positions[i] - viewpoint);
     if (q.z() < 0.05f) {
       behind = true;
       break;
@@ -344,7 +344,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     if (e1.cross(e2).dot(viewpoint - mean) > 0) e1 = -e1;
     points.clear();
     for (size_t i = 0; i < seam.vertices.size(); ++i) {
-      const Eigen::Vector3f d = layout_position(seam.vertices[i]) - mean;
+      const Eigen::Vector3f d = positions[i] - mean;
       points.emplace_back(Kernel::Point_2(d.dot(e1), d.dot(e2)), SeamInfo{static_cast<int>(i)});
     }
     seam.used_pca = true;

@@ -9,9 +9,14 @@
 //! Projection: the paper projects onto the seam's PCA plane. A seam that wraps around a body is
 //! not planar, so the seam is projected instead through a virtual camera halfway between the two
 //! cameras (centre at the midpoint, rotation halfway): every seam point is seen by both cameras,
-//! so this projection is one-to-one over the seam however it curves, and no triangle folds. The
-//! PCA plane remains the fallback when a point lies behind the virtual camera (cameras facing each
-//! other).
+//! so this projection is one-to-one over the seam however it curves. The PCA plane remains the
+//! fallback when a point lies behind the virtual camera (cameras facing each other).
+//!
+//! The points are projected, and output, where the seam puts them: on their pixel's ray at the
+//! mean depth of their surface around it (SeamOptions::smoothing_radius), the same positions for
+//! both. A triangle that faces the virtual camera in 2-D then faces it in 3-D too: no seam
+//! triangle folds over its neighbours, which a layout at smoothed depth with output at the
+//! measured depth did wherever the two differed (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -32,10 +37,12 @@ struct SeamOptions {
   float clipping_distance = 0.03f;  // d_c, metres
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
   float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close
+  int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
 };
 
 struct Seam {
   std::vector<PixelVertex> vertices;
+  std::vector<Eigen::Vector3f> positions;  // per vertex, world: where the seam puts it (stitch_seam), the output mesh's position
   std::vector<Eigen::Vector3i> triangles;  // indices into `vertices`, facing the cameras
   int triangles_taken = 0;                 // original triangles replaced by the seam
   bool used_pca = false;                   // the PCA fallback projection was used

@@ -60,6 +60,7 @@ void ZipperOptions::validate() const {
   if (smoothness_window_px < 1 || smoothness_window_px > 256) throw InvalidInput("smoothness-window: must be in [1, 256] pixels");
   if (!(smoothness_exponent > 0 && smoothness_exponent <= 128)) throw InvalidInput("smoothness-exponent: must be in (0, 128]");
   if (!(max_seam_edge_m > 0 && max_seam_edge_m < 0.5)) throw InvalidInput("max-seam-edge: must be in (0, 0.5) metres");
+  if (seam_smoothing_px < -1 || seam_smoothing_px > 4) throw InvalidInput("seam-smoothing: must be in [0, 4] pixels, or -1 for auto");
   if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("min-overlap: must be in [0, 1)");
 }
 
@@ -201,7 +202,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   }, options.num_threads);
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
-                                 .ownership_distance = d_r};
+                                 .ownership_distance = d_r,
+                                 .smoothing_radius = options.seam_smoothing_px < 0 ? 2 : options.seam_smoothing_px};
   // Two phases. The seams take their triangles out of the meshes in rounds (the pairs of a round
   // share no camera, so each mesh is edited in a fixed order); each taken triangle is marked
   // with its round. Then every seam is triangulated at once, the pairs spread over the threads by
@@ -370,6 +372,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     slot_vertex.clear();
     local_slot.clear();
     for (const Seam& seam : seams) {
+      // The seam's vertices where it put them (a pixel in two seams gets the same position from both).
+      for (size_t k = 0; k < seam.positions.size(); ++k) mesh.positions[vertex(seam.vertices[k])] = seam.positions[k];
       for (const PixelVertex& v : seam.vertices) {
         const int id = vertex(v);
         int& slot = seam_slot[id];

@@ -35,6 +35,10 @@ struct ZipperOptions {
   int smoothness_window_px = 250;       // smoothness: compared over windows this wide (pixels)
   double smoothness_exponent = 96;      // smoothness: exponent of the area ratio, how much smoother outweighs a mesh's border
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
+  // Seams: each point lies at the mean depth of its surface over (2·this+1)² pixels of the
+  // meshes (SeamOptions::smoothing_radius); 0: as measured; −1: auto
+  // (ReconstructOptions::seam_smoothing_px(): 2 on unfiltered depth, 0 on filtered; here: 2).
+  int seam_smoothing_px = -1;
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)

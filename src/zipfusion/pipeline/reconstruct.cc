@@ -34,6 +34,7 @@ ReconstructOptions at_depth_level(ReconstructOptions options) {
   options.filter.spatial_sigma_px = std::max(0.5, options.filter.spatial_sigma_px / scale);
   options.filter.radius_px = std::max(1, static_cast<int>(options.filter.radius_px / scale));
   options.zipper.hole_closing_px >>= level;
+  options.zipper.seam_smoothing_px = options.seam_smoothing_px() >> level;
   options.zipper.smoothness_window_px = std::max(1, options.zipper.smoothness_window_px >> level);
   options.zipper.coarse_levels = std::max(0, options.zipper.coarse_levels - level);
   options.zipper.depth_level = level;
@@ -145,6 +146,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     }
     ZipperOptions zipper = options_.zipper;
     zipper.ownership = options_.ownership();
+    zipper.seam_smoothing_px = options_.seam_smoothing_px();
     zipper.num_threads = threads;
     ZipperResult zipped = zipper_meshes(inputs, zipper, zipper_scratch_, std::move(result.mesh));
     result.mesh = std::move(zipped.mesh);

@@ -54,6 +54,14 @@ struct ReconstructOptions {
     if (zipper.ownership != Ownership::kAuto) return zipper.ownership;
     return bilateral ? Ownership::kBorder : Ownership::kSmoothness;
   }
+  //! zipper.seam_smoothing_px with −1 (auto) resolved: unfiltered, the seam's points need the
+  //! mean of their surface to lie as regularly as the pixel grid (noise shifts them sideways in
+  //! the seam's view by more than the pixel spacing); filtered depth is regular already, and a
+  //! second mean only moves points off the surface (samba-4cam: accuracy 1.12 against 1.10 mm).
+  int seam_smoothing_px() const {
+    if (zipper.seam_smoothing_px >= 0) return zipper.seam_smoothing_px;
+    return bilateral ? 0 : 2;
+  }
 };
 
 //! Wall-clock milliseconds per stage of one frame set (stages run over all cameras in parallel).
