@@ -47,8 +47,8 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
       ->capture_default_str();
   cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
   cmd->add_option("--seam-smoothing", o.zipper.seam_smoothing_px,
-                  "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels (0: as measured; -1: auto, 2 without the "
-                  "filter, 0 with it)")
+                  "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels, in [0, 4], halved at each --lod level (0: as "
+                  "measured; -1: auto, 2 without the filter, 0 with it)")
       ->capture_default_str();
   cmd->add_option("--ownership", args.ownership,
                   "Which camera keeps a surface two see: the smoother one (smoothness: less noise), the one seeing it farther from its "
@@ -81,7 +81,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"coarse_shrink", options.zipper.coarse_shrink},
           {"clipping_distance_m", options.zipper.clipping_distance_m},
           {"max_seam_edge_m", options.zipper.max_seam_edge_m},
-          {"seam_smoothing_px", options.seam_smoothing_px()},  // as used, auto resolved
+          {"seam_smoothing_px", options.seam_smoothing_px()},  // auto resolved; full-resolution pixels (halved at each --lod level)
           {"min_overlap_share", options.zipper.min_overlap_share},
           {"ownership", options.ownership() == Ownership::kBorder ? "border" : "smoothness"},  // as used, auto resolved
           {"hole_closing_px", options.zipper.hole_closing_px},

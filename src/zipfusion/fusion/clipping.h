@@ -14,9 +14,10 @@
 //!
 //! The points are projected, and output, where the seam puts them: on their pixel's ray at the
 //! mean depth of their surface around it (SeamOptions::smoothing_radius), the same positions for
-//! both. A triangle that faces the virtual camera in 2-D then faces it in 3-D too: no seam
-//! triangle folds over its neighbours, which a layout at smoothed depth with output at the
-//! measured depth did wherever the two differed (docs/design.md).
+//! both. A triangle that faces the virtual camera in 2-D then faces it in 3-D too (on the PCA
+//! fallback: faces the side of the plane the cameras are on), so no seam triangle turns over,
+//! as they did wherever a layout at smoothed depth and output at measured depth differed
+//! (docs/design.md). Two seam triangles may still meet at a sharp crease.
 
 #include <cstdint>
 #include <cstring>
@@ -42,7 +43,9 @@ struct SeamOptions {
 
 struct Seam {
   std::vector<PixelVertex> vertices;
-  std::vector<Eigen::Vector3f> positions;  // per vertex, world: where the seam puts it (stitch_seam), the output mesh's position
+  // Per vertex, world: where the seam puts it (stitch_seam), the output mesh's position; empty
+  // for a seam of fewer than 3 vertices (no triangles: its vertices keep their measured points).
+  std::vector<Eigen::Vector3f> positions;
   std::vector<Eigen::Vector3i> triangles;  // indices into `vertices`, facing the cameras
   int triangles_taken = 0;                 // original triangles replaced by the seam
   bool used_pca = false;                   // the PCA fallback projection was used

@@ -340,6 +340,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
     seams[i] = std::move(taken[i].seam);
     result.stats.seam_taken += seams[i].triangles_taken;
+    result.stats.seam_pca += seams[i].used_pca;
   }
   // Clipping ends with the last seam; the writing still running then, and what follows, is
   // assembly's (and the counting before, a few percent of it, clipping's).
@@ -435,6 +436,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     }
     assembled = Clock::now();
   };
+  // Colours are sampled at the measured depth: a seam vertex moved along its ray to its surface's
+  // mean depth (millimetres) projects into the colour camera a small fraction of a pixel away.
   auto color_camera = [&](int i) {
     const int c = active[i];
     const ZipperScratch::Camera& s = scratch.cameras[c];

@@ -70,6 +70,7 @@ struct ZipperStats {
   int seam_taken = 0;         // triangles replaced by seams
   int seam_added = 0;         // seam triangles created
   int seam_rejected = 0;      // seam triangles dropped for reusing a directed edge (overlap)
+  int seam_pca = 0;           // seams laid out on their PCA plane (a point behind the virtual camera)
 };
 
 struct ZipperResult {

@@ -113,8 +113,10 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 }
 
 // The seams fold no more than a few of their triangles over their neighbours (count_folded_edges:
-// the folds of the zippered mesh less those of its kept triangles alone), on samba-4cam frame 0
-// with the true poses, and every seam triangle faces a camera. When the seam points were laid out
+// the folds of the zippered mesh less those of its kept triangles alone, whose vertices the seams
+// may have moved along their rays: folds among kept triangles are bounded against the separate
+// meshes by zipper_quality_test), on samba-4cam frame 0 with the true poses, and every seam
+// triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When the seam points were laid out
 // at their surface's mean depth but output at their measured depth, the unfiltered seam folded at
 // 1 681 edges (now 57, for 7 231 seam triangles) and 25 of its triangles faced away from every
 // camera; filtered, at 54 edges (now 26, for 8 825).
@@ -129,6 +131,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
     // The seam triangles come last.
     const int seam_triangles = result.zipper.seam_added;
     ASSERT_GT(seam_triangles, 5000) << "bilateral " << bilateral;
+    EXPECT_EQ(result.zipper.seam_pca, 0) << "bilateral " << bilateral << ": a seam on its PCA plane faces along the plane's normal only";
     TriangleMesh kept = result.mesh;
     kept.triangles.resize(kept.triangles.size() - seam_triangles);
     const int seam_folds = count_folded_edges(result.mesh) - count_folded_edges(kept);
