@@ -14,6 +14,7 @@
 #include "zipfusion/depth/sdc_mesh.h"
 #include "zipfusion/fusion/zipper.h"
 #include "zipfusion/io/capture.h"
+#include "zipfusion/pipeline/reconstruct.h"
 
 namespace zipfusion {
 namespace {
@@ -97,14 +98,14 @@ BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
 
 // All of zippering (pyramid, pairs, FRBR, clipping, assembly) for the four cameras; Args =
 // threads, ownership (0 border, 1 smoothness), depth (0 unfiltered, 1 bilateral-filtered). The
-// reconstruction's defaults are smoothness for unfiltered and border for filtered depth, and seam points
-// at their surface's mean depth over 5×5 pixels unfiltered, as measured filtered.
+// reconstruction's defaults are smoothness for unfiltered and border for filtered depth; the seam
+// smoothing is the reconstruction's default for the depth.
 void BM_ZipperFourCameras(benchmark::State& state) {
   const SambaFrame& f = frame();
   ZipperScratch scratch;
   std::vector<DepthMesh> meshes;
   const ZipperOptions options{.ownership = state.range(1) ? Ownership::kSmoothness : Ownership::kBorder,
-                              .seam_smoothing_px = state.range(2) ? 0 : 2,
+                              .seam_smoothing_px = ReconstructOptions{.bilateral = state.range(2) != 0}.seam_smoothing_px(),
                               .num_threads = static_cast<int>(state.range(0))};
   const std::vector<DepthMesh>& input = state.range(2) ? f.filtered_meshes : f.meshes;
   TriangleMesh reused;  // the output mesh's buffers, reused as the pipeline does

@@ -26,6 +26,7 @@
 
 #include "samba_frame.h"
 #include "zipfusion/fusion/zipper.h"
+#include "zipfusion/pipeline/reconstruct.h"
 
 using namespace zipfusion;
 
@@ -72,9 +73,8 @@ int main(int argc, char** argv) {
   const std::vector<DepthMesh>& meshes = filtered ? samba.filtered_meshes : samba.meshes;
   const int n = static_cast<int>(meshes.size());
   // The reconstruction's default ownership and seam smoothing for each input.
-  const ZipperOptions options{.ownership = filtered ? Ownership::kBorder : Ownership::kSmoothness,
-                              .seam_smoothing_px = filtered ? 0 : 2,
-                              .num_threads = threads};
+  const ReconstructOptions defaults{.bilateral = filtered};
+  const ZipperOptions options{.ownership = defaults.ownership(), .seam_smoothing_px = defaults.seam_smoothing_px(), .num_threads = threads};
   ZipperScratch scratch;
   // Per stage, as ZipperStats names them, the times of every call.
   const std::vector<std::pair<const char*, double ZipperStats::*>> stages{

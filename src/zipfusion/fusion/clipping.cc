@@ -376,9 +376,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   }
   for (const auto& point : points) insert_point(point);
   // With the seam laid out at locally averaged depth (unfiltered; filtered depth is laid out as
-  // measured, as regular), about 90 % of the kept edges are already edges of the triangulation: those are marked as constrained in place (which keeps it
-  // constrained Delaunay), without CGAL's general insertion, which first looks for vertices on
-  // the segment and allocates a work stack per call (clipping 9 % fewer instructions).
+  // measured, as regular), about 90 % of the kept edges are already edges of the triangulation:
+  // those are marked as constrained in place (which keeps it constrained Delaunay), without
+  // CGAL's general insertion, which first looks for vertices on the segment and allocates a work
+  // stack per call (clipping 9 % fewer instructions).
   // Of the others, most cross one edge and take one flip (flip_into_edge).
   for (const auto& [i, j] : constraints) {
     if (handle[i] == handle[j] || mark_constrained(triangulation, handle[i], handle[j])) continue;

@@ -116,10 +116,10 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 // the folds of the zippered mesh less those of its kept triangles alone, whose vertices the seams
 // may have moved along their rays: folds among kept triangles are bounded against the separate
 // meshes by zipper_quality_test), on samba-4cam frame 0 with the true poses, and every seam
-// triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When the seam points were laid out
-// at their surface's mean depth but output at their measured depth, the unfiltered seam folded at
-// 1 681 edges (now 57, for 7 231 seam triangles) and 25 of its triangles faced away from every
-// camera; filtered, at 54 edges (now 26, for 8 825).
+// triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When
+// the seam points were laid out at their surface's mean depth but output at their measured depth,
+// the unfiltered seam folded at 1 681 edges (now 57, for 7 231 seam triangles) and 25 of its
+// triangles faced away from every camera; filtered, at 54 edges (now 26, for 8 825).
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   Rig rig = *capture.ground_truth_rig();
