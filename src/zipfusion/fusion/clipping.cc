@@ -2,6 +2,7 @@
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include <Eigen/Eigenvalues>
@@ -16,7 +17,12 @@ struct SeamInfo {
   int index = -1;
 };
 using VertexBase = CGAL::Triangulation_vertex_base_with_info_2<SeamInfo, Kernel>;
-using FaceBase = CGAL::Constrained_triangulation_face_base_2<Kernel>;
+// Face info: set before the seam's output is chosen (set_face_info).
+struct SeamFace {
+  Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+  bool output = false;
+};
+using FaceBase = CGAL::Constrained_triangulation_face_base_2<Kernel, CGAL::Triangulation_face_base_with_info_2<SeamFace, Kernel>>;
 using TriangulationData = CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>;
 // Constraints from two meshes may cross where their borders overlap; Exact_predicates_tag lets
 // CGAL split them at an approximate intersection instead of failing.
@@ -213,6 +219,90 @@ bool mark_constrained(Delaunay& triangulation, Delaunay::Vertex_handle from, Del
   return true;
 }
 
+// Sets a face's info: whether it is output (`output(i0, i1, i2)` of its seam vertices; never at
+// a crossing of two constraints, where CGAL made a vertex) and its normal in 3-D, its vertices
+// taken in their (counter-clockwise) order.
+template <typename Output>
+void set_face_info(Delaunay::Face_handle f, const std::vector<Eigen::Vector3f>& positions, Output&& output) {
+  const int i0 = f->vertex(0)->info().index, i1 = f->vertex(1)->info().index, i2 = f->vertex(2)->info().index;
+  SeamFace& info = f->info();
+  info.output = i0 >= 0 && i1 >= 0 && i2 >= 0 && output(i0, i1, i2);
+  if (info.output) info.normal = (positions[i1] - positions[i0]).cross(positions[i2] - positions[i0]).normalized();
+}
+
+// Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
+// Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
+// by the layout alone; where the two meshes' points lie a few millimetres apart in depth, the
+// diagonal it chose can make two output triangles, both facing the virtual camera, meet at a
+// crease sharper than 60° (normals more than 120° apart, eval's count_folded_edges), where the
+// other diagonal makes them one slope. An unconstrained edge between two creased output faces is
+// flipped when its quadrilateral is strictly convex in 2-D (so both new faces are still
+// counter-clockwise in the layout: they face the virtual camera), the new diagonal is no longer
+// than max_edge, and the sharpest crease over the quadrilateral's five edges becomes less sharp;
+// otherwise it is flipped back. Every finite face's info must be set (set_face_info) and is kept
+// so. `candidates` is scratch.
+template <typename Output>
+void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, float max_edge2, Output&& output,
+                      std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+  if (triangulation.dimension() != 2) return;
+  constexpr float kCreaseCosine = -0.5f;
+  // The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is not
+  // output.
+  auto edge_cosine = [&](Delaunay::Face_handle f, int i) {
+    const Delaunay::Face_handle g = f->neighbor(i);
+    return !triangulation.is_infinite(f) && !triangulation.is_infinite(g) && f->info().output && g->info().output
+               ? f->info().normal.dot(g->info().normal)
+               : 1.0f;
+  };
+  // The sharpest crease over edge (f, i) and the four outer edges of its quadrilateral.
+  auto sharpest = [&](Delaunay::Face_handle f, int i) {
+    const Delaunay::Face_handle g = f->neighbor(i);
+    const int j = triangulation.mirror_index(f, i);
+    return std::min({edge_cosine(f, i), edge_cosine(f, Delaunay::cw(i)), edge_cosine(f, Delaunay::ccw(i)), edge_cosine(g, Delaunay::cw(j)),
+                     edge_cosine(g, Delaunay::ccw(j))});
+  };
+  auto creased = [&](Delaunay::Face_handle f, int i) { return !f->is_constrained(i) && edge_cosine(f, i) < kCreaseCosine; };
+  auto edge_vertices = [](Delaunay::Face_handle f, int i) { return std::pair{f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))}; };
+  candidates.clear();
+  for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) {
+    if (creased(edge->first, edge->second)) candidates.push_back(edge_vertices(edge->first, edge->second));
+  }
+  // A flip changes only its quadrilateral: creases left on its outer edges are queued in turn, up
+  // to a bound that ends the pass whatever happens.
+  const size_t most = 8 * candidates.size();
+  for (size_t k = 0; k < candidates.size() && k < most; ++k) {
+    const auto [u, v] = candidates[k];
+    Delaunay::Face_handle f;
+    int i = 0;
+    if (!triangulation.is_edge(u, v, f, i) || !creased(f, i)) continue;
+    const Delaunay::Face_handle g = f->neighbor(i);
+    const Delaunay::Vertex_handle w = f->vertex(i), x = g->vertex(triangulation.mirror_index(f, i));
+    const CGAL::Orientation side_u = triangulation.orientation(w->point(), x->point(), u->point());
+    const CGAL::Orientation side_v = triangulation.orientation(w->point(), x->point(), v->point());
+    if (side_u == CGAL::COLLINEAR || side_v == CGAL::COLLINEAR || side_u == side_v) continue;
+    if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
+    const float before = sharpest(f, i);
+    triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
+    set_face_info(f, positions, output);
+    set_face_info(g, positions, output);
+    Delaunay::Face_handle h;
+    int e = 0;
+    triangulation.is_edge(w, x, h, e);
+    if (sharpest(h, e) > before) {
+      const Delaunay::Face_handle n = h->neighbor(e);
+      const int j = triangulation.mirror_index(h, e);
+      for (const auto& [face, index] : {std::pair{h, Delaunay::cw(e)}, std::pair{h, Delaunay::ccw(e)}, std::pair{n, Delaunay::cw(j)},
+                                        std::pair{n, Delaunay::ccw(j)}}) {
+        if (creased(face, index)) candidates.push_back(edge_vertices(face, index));
+      }
+    } else {
+      triangulation.flip(h, e);  // back: the same two triangles as before
+      set_face_info(h, positions, output);
+      set_face_info(h->neighbor(e), positions, output);
+    }
+  }
+}
+
 // Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a
 // (2·radius + 1)² window) on the same surface (within the view's SDC threshold), in the camera
 // frame.
@@ -242,6 +332,37 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, int radiu
     }
   }
   return unproject(view.intrinsics, static_cast<float>(u), static_cast<float>(v), sum / static_cast<float>(count));
+}
+
+// Element function: where the seam puts point p (world) of one mesh, whose camera's centre is
+// `centre`, given the other mesh's view `other` (after Turk and Levoy's consensus geometry): on
+// p's own ray, at the point nearest halfway between p and the other camera's surface where that
+// camera sees p, its depth interpolated bilinearly over the pixels around p's projection on the
+// same surface (within `same_surface` of p's depth there); p itself where the other camera has
+// no depth on that surface. Both meshes' points then lie on one surface, halfway between their
+// two layers: laid out side by side in the seam, points of two layers a few millimetres apart
+// in depth made its triangles zigzag between them, at creases sharper than 60°. Moving along the
+// own ray keeps the point on its pixel: its kept triangles do not turn over in its camera.
+Eigen::Vector3f consensus_point(const Eigen::Vector3f& p, const Eigen::Vector3f& centre, const MeshView& other,
+                                const Rigid3f& world_from_other, float same_surface) {
+  const ViewPoint q = project_into(other, p);
+  if (q.cell < 0) return p;
+  const DepthMesh& mesh = *other.mesh;
+  // q lies in the image (its cell is valid), so the floor is a truncation.
+  const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
+  const float* depth = mesh.depth.data() + q.cell;
+  const float z[4] = {depth[0], depth[1], depth[mesh.width], depth[mesh.width + 1]};
+  const float w[4] = {(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv};
+  float sum = 0, weight = 0;
+  for (int k = 0; k < 4; ++k) {
+    const bool same = z[k] > 0 && std::abs(z[k] - q.in_camera.z()) < same_surface;
+    sum += same ? w[k] * z[k] : 0.0f;
+    weight += same ? w[k] : 0.0f;
+  }
+  if (!(weight > 0)) return p;
+  const Eigen::Vector3f on_other = world_from_other * (q.in_camera * (sum / weight / q.in_camera.z()));
+  const Eigen::Vector3f ray = (p - centre).normalized();
+  return centre + ray * ray.dot(0.5f * (p + on_other) - centre);
 }
 
 }  // namespace
@@ -296,17 +417,22 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // ray at the mean depth of the surface around it. Unfiltered, noise moves a point along its
   // camera's ray, which a view from another direction sees as a sideways shift larger than the
   // pixel spacing (about 7 mm for the Kinect's 1 cm at 2.5 m, seen from 45°): the grid would fold
-  // over and the kept edges cross. The mean keeps the layout as regular as the pixel grid. The
-  // output takes the same positions: where it kept the measured ones, a face the layout saw from
-  // the front could face away in 3-D, folded over its neighbours.
+  // over and the kept edges cross. The mean keeps the layout as regular as the pixel grid. Each
+  // point then moves halfway to the other mesh's layer (consensus_point), so the two meshes'
+  // points lie on one surface. The output takes the same positions: where it kept the measured
+  // ones, a face the layout saw from the front could face away in 3-D, folded over its neighbours.
   std::vector<Eigen::Vector3f>& positions = seam.positions;
   positions.resize(seam.vertices.size());
   const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     const PixelVertex& v = seam.vertices[i];
     const bool in_a = v.camera == a.camera;
-    positions[i] = options.smoothing_radius == 0 ? (in_a ? a.mesh : b.mesh)->point(v.pixel)
-                                                 : (in_a ? world_from_a : world_from_b) * smoothed_camera_point(in_a ? a : b, v.pixel, options.smoothing_radius);
+    const Eigen::Vector3f measured = options.smoothing_radius == 0
+                                         ? (in_a ? a.mesh : b.mesh)->point(v.pixel)
+                                         : (in_a ? world_from_a : world_from_b) * smoothed_camera_point(in_a ? a : b, v.pixel, options.smoothing_radius);
+    positions[i] = !taken.shared.empty() && taken.shared[i] ? measured
+                   : in_a                                    ? consensus_point(measured, centre_a, b, world_from_b, options.ownership_distance)
+                                                             : consensus_point(measured, centre_b, a, world_from_a, options.ownership_distance);
   }
 
   // The virtual camera halfway between the two.
@@ -389,18 +515,22 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     triangulation.insert_constraint(handle[i], handle[j]);
   }
   const float max_edge2 = options.max_edge * options.max_edge;
+  // Is the seam triangle of these vertices output? Not with an edge longer than max_edge, nor over
+  // a kept triangle of either mesh (the seam would double the surface there).
+  auto output = [&](int i0, int i1, int i2) {
+    const Eigen::Vector3f &p0 = positions[i0], &p1 = positions[i1], &p2 = positions[i2];
+    if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) return false;
+    const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
+    return !covered_by_triangle(a, project_into(a, centroid), options.clipping_distance, kept_a) &&
+           !covered_by_triangle(b, project_into(b, centroid), options.clipping_distance, kept_b);
+  };
+  for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
+  std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
+  flip_out_creases(triangulation, positions, max_edge2, output, crease_candidates);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
+    if (!face->info().output) continue;
     int index[3];
     for (int k = 0; k < 3; ++k) index[k] = face->vertex(k)->info().index;
-    if (index[0] < 0 || index[1] < 0 || index[2] < 0) continue;  // at a crossing of two constraints
-    const Eigen::Vector3f &p0 = positions[index[0]], &p1 = positions[index[1]], &p2 = positions[index[2]];
-    if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) continue;
-    const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;
-    // Over a kept triangle of either mesh: the seam would double the surface there.
-    if (covered_by_triangle(a, project_into(a, centroid), options.clipping_distance, kept_a) ||
-        covered_by_triangle(b, project_into(b, centroid), options.clipping_distance, kept_b)) {
-      continue;
-    }
     // CGAL's faces are counter-clockwise in the 2-D coordinates; with image-like axes (y down) a
     // face towards the viewer is clockwise there, like the SDC triangles. Flipping every face
     // orients the whole seam consistently, slivers included (a 3-D normal test would not).

@@ -13,11 +13,14 @@
 //! fallback when a point lies behind the virtual camera (cameras facing each other).
 //!
 //! The points are projected, and output, where the seam puts them: on their pixel's ray at the
-//! mean depth of their surface around it (SeamOptions::smoothing_radius), the same positions for
-//! both. A triangle that faces the virtual camera in 2-D then faces it in 3-D too (on the PCA
-//! fallback: faces the side of the plane the cameras are on), so no seam triangle turns over,
-//! as they did wherever a layout at smoothed depth and output at measured depth differed
-//! (docs/design.md). Two seam triangles may still meet at a sharp crease.
+//! mean depth of their surface around it (SeamOptions::smoothing_radius), moved halfway towards
+//! the other camera's surface (consensus), the same positions for both. A triangle that faces the
+//! virtual camera in 2-D then faces it in 3-D too (on the PCA fallback: faces the side of the
+//! plane the cameras are on), so no seam triangle turns over, as they did wherever a layout at
+//! smoothed depth and output at measured depth differed (docs/design.md). The consensus puts both
+//! meshes' points on one surface, so the seam does not zigzag between two layers; a crease left
+//! sharper than 60° is flipped out where the other diagonal of its quadrilateral is smoother. A
+//! few remain (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -37,7 +40,7 @@ struct PixelVertex {
 struct SeamOptions {
   float clipping_distance = 0.03f;  // d_c, metres
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
-  float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close
+  float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved halfway to it within this depth
   int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
 };
 
@@ -113,6 +116,10 @@ struct TakenSeam {
   Seam seam;                                      // vertices and triangles_taken; no triangles yet
   std::vector<std::pair<int, int>> constraints;   // the kept edges between seam vertices
   std::vector<int> taken_a, taken_b;              // triangle ids taken out of each mesh
+  // Per vertex of the seam: whether another seam has its pixel as a vertex too. Such a point keeps
+  // its own place (the seams would move it towards different cameras' surfaces, and the output
+  // has one position per pixel). Empty: none is.
+  std::vector<std::uint8_t> shared;
 };
 
 //! The first phase: takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out

@@ -225,6 +225,20 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       for (int id : taken[pair_index].taken_b) scratch.cameras[b].taken_round[id] = static_cast<std::uint8_t>(r + 1);
     }, options.num_threads);
   }
+  // Pixels that are vertices of more than one seam (where three cameras' seams meet): each seam
+  // would move them towards its other camera's surface, so they keep their own place.
+  for (int c : active) scratch.cameras[c].seams_at_pixel.resize(cameras[c].mesh->triangles.size(), 0);
+  auto seams_at = [&](const PixelVertex& v) -> std::uint8_t& { return scratch.cameras[v.camera].seams_at_pixel[v.pixel]; };
+  for (const TakenSeam& seam : taken) {
+    for (const PixelVertex& v : seam.seam.vertices) seams_at(v) = static_cast<std::uint8_t>(std::min(2, seams_at(v) + 1));
+  }
+  for (TakenSeam& seam : taken) {
+    seam.shared.resize(seam.seam.vertices.size());
+    for (size_t k = 0; k < seam.seam.vertices.size(); ++k) seam.shared[k] = seams_at(seam.seam.vertices[k]) > 1;
+  }
+  for (const TakenSeam& seam : taken) {
+    for (const PixelVertex& v : seam.seam.vertices) seams_at(v) = 0;
+  }
   const Clock::time_point taken_at = Clock::now();
 
   // The seams are triangulated while the kept triangles are written (assembly): the output's

@@ -118,8 +118,9 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 // meshes by zipper_quality_test), on samba-4cam frame 0 with the true poses, and every seam
 // triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When
 // the seam points were laid out at their surface's mean depth but output at their measured depth,
-// the unfiltered seam folded at 1 681 edges (now 57, for 7 231 seam triangles) and 25 of its
-// triangles faced away from every camera; filtered, at 54 edges (now 26, for 8 825).
+// the unfiltered seam folded at 1 681 edges (57 after, for 7 231 seam triangles) and 25 of its
+// triangles faced away from every camera; filtered, at 54 edges (26 after, for 8 825). Moving the
+// points halfway to the other camera's layer and flipping creases out left 53 and 15.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   Rig rig = *capture.ground_truth_rig();
@@ -135,7 +136,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
     TriangleMesh kept = result.mesh;
     kept.triangles.resize(kept.triangles.size() - seam_triangles);
     const int seam_folds = count_folded_edges(result.mesh) - count_folded_edges(kept);
-    EXPECT_LT(seam_folds, (bilateral ? 0.004 : 0.02) * seam_triangles) << "bilateral " << bilateral;
+    EXPECT_LT(seam_folds, (bilateral ? 0.0025 : 0.01) * seam_triangles) << "bilateral " << bilateral;
     int facing_no_camera = 0;
     for (size_t i = kept.triangles.size(); i < result.mesh.triangles.size(); ++i) {
       const Eigen::Vector3i& t = result.mesh.triangles[i];
