@@ -13,14 +13,15 @@
 //! fallback when a point lies behind the virtual camera (cameras facing each other).
 //!
 //! The points are projected, and output, where the seam puts them: on their pixel's ray at the
-//! mean depth of their surface around it (SeamOptions::smoothing_radius), moved halfway towards
+//! mean depth of their surface around it (SeamOptions::smoothing_radius), moved towards
 //! the other camera's surface (consensus), the same positions for both. A triangle that faces the
 //! virtual camera in 2-D then faces it in 3-D too (on the PCA fallback: faces the side of the
 //! plane the cameras are on), so no seam triangle turns over, as they did wherever a layout at
-//! smoothed depth and output at measured depth differed (docs/design.md). The consensus puts both
-//! meshes' points on one surface, so the seam does not zigzag between two layers; a crease left
-//! sharper than 60° is flipped out where the other diagonal of its quadrilateral is smoother. A
-//! few remain (docs/design.md).
+//! smoothed depth and output at measured depth differed (docs/design.md). The consensus brings
+//! both meshes' points close together between their two layers (a pixel that is a vertex of two
+//! seams keeps its place), so the seam does not zigzag between them; a crease left sharper than
+//! 60° is flipped out where the other diagonal of its quadrilateral is smoother. A few remain
+//! (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -40,7 +41,7 @@ struct PixelVertex {
 struct SeamOptions {
   float clipping_distance = 0.03f;  // d_c, metres
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
-  float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved halfway to it within this depth
+  float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved towards it within this depth
   int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
 };
 
