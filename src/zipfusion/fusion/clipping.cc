@@ -341,9 +341,10 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, int radiu
 // p's own ray, at the point nearest the midpoint of p and the other camera's surface point on
 // its ray through p, its depth interpolated bilinearly over the pixels around p's projection on
 // the same surface (within `same_surface` of p's depth there); p itself where the other camera
-// has no depth on that surface. Moving along the own ray keeps the point on its pixel, so its
-// kept triangles do not turn over in its camera; it moves cos α of halfway (α the angle between
-// the two cameras' rays), and both meshes' points end up close together between their layers.
+// has no depth on that surface, or where α, the angle between the two cameras' rays, is 90° or
+// more. Moving along the own ray keeps the point on its pixel, so its kept triangles do not turn
+// over in its camera; it moves cos α of halfway, and both meshes' points end up close together
+// between their layers.
 // Laid out side by side in the seam, points of two layers a few millimetres apart in depth made
 // its triangles zigzag between them, at creases sharper than 60°. Tried, no fewer creases on
 // samba-4cam nor on zipper_test's offset wall: a secant step to where p's ray meets the halfway
@@ -368,6 +369,10 @@ Eigen::Vector3f consensus_point(const Eigen::Vector3f& p, const Eigen::Vector3f&
   if (!(weight > 0)) return p;
   const Eigen::Vector3f on_other = world_from_other * (q.in_camera * (sum / weight / q.in_camera.z()));
   const Eigen::Vector3f ray = (p - centre).normalized();
+  // Where the two cameras' rays meet at 90° or more (cos α ≤ 0: grazing overlaps, as of three
+  // cameras 120° apart), the nearest point to the midpoint lies on the far side of p from the
+  // other layer, and moving there pulled the layers apart.
+  if (!(ray.dot(world_from_other.linear() * q.in_camera.normalized()) > 0)) return p;
   return centre + ray * ray.dot(0.5f * (p + on_other) - centre);
 }
 

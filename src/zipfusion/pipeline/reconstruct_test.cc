@@ -120,7 +120,7 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 // the seam points were laid out at their surface's mean depth but output at their measured depth,
 // the unfiltered seam folded at 1 681 edges (57 after, for 7 231 seam triangles) and 25 of its
 // triangles faced away from every camera; filtered, at 54 edges (26 after, for 8 825). Moving the
-// points towards the other camera's layer and flipping creases out left 53 and 15.
+// points towards the other camera's layer and flipping creases out left 53 and 16.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   Rig rig = *capture.ground_truth_rig();
