@@ -165,6 +165,13 @@ MeshComponents connected_components(const TriangleMesh& mesh) {
   return out;
 }
 
+namespace {
+
+// The undirected edge (a, b) as one sortable key, the same for (b, a).
+std::uint64_t undirected_edge_key(std::uint32_t a, std::uint32_t b) { return static_cast<std::uint64_t>(std::min(a, b)) << 32 | std::max(a, b); }
+
+}  // namespace
+
 int count_non_manifold_edges(const TriangleMesh& mesh) {
   std::vector<std::uint64_t> edges;
   edges.reserve(3 * mesh.triangles.size());
@@ -172,7 +179,7 @@ int count_non_manifold_edges(const TriangleMesh& mesh) {
     if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
     for (int k = 0; k < 3; ++k) {
       const auto a = static_cast<std::uint32_t>(t[k]), b = static_cast<std::uint32_t>(t[(k + 1) % 3]);
-      edges.push_back(static_cast<std::uint64_t>(std::min(a, b)) << 32 | std::max(a, b));
+      edges.push_back(undirected_edge_key(a, b));
     }
   }
   std::sort(edges.begin(), edges.end());
@@ -205,7 +212,7 @@ int count_folded_edges(const TriangleMesh& mesh) {
     normals[i].normalize();
     for (int k = 0; k < 3; ++k) {
       const auto from = static_cast<std::uint32_t>(t[k]), to = static_cast<std::uint32_t>(t[(k + 1) % 3]);
-      uses.push_back({static_cast<std::uint64_t>(std::min(from, to)) << 32 | std::max(from, to), static_cast<int>(i), from < to});
+      uses.push_back({undirected_edge_key(from, to), static_cast<int>(i), from < to});
     }
   }
   std::sort(uses.begin(), uses.end(), [](const EdgeUse& x, const EdgeUse& y) { return x.key < y.key || (x.key == y.key && x.triangle < y.triangle); });

@@ -102,13 +102,24 @@ double uncovered_share(const TriangleMesh& truth, const TriangleMesh& mesh, floa
 TriangleMesh wall_mesh() {
   return grid_mesh(120, 160, [](float s, float t) { return Eigen::Vector3f(0, -0.6f + 1.2f * s, 0.2f + 1.6f * t); });
 }
-Scene two_views_of(const TriangleMesh& wall) {
+// The first camera sees `wall`, the second `second_view` (the wall itself, or a layer of it).
+Scene two_views_of(const TriangleMesh& wall, const TriangleMesh& second_view) {
   Scene scene;
-  for (double angle_deg : {-20.0, 20.0}) {
+  for (const auto& [angle_deg, surface] : {std::pair{-20.0, &wall}, std::pair{20.0, &second_view}}) {
     const double a = angle_deg * std::numbers::pi / 180;
-    scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), wall);
+    scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), *surface);
   }
   return scene;
+}
+Scene two_views_of(const TriangleMesh& wall) { return two_views_of(wall, wall); }
+
+// Sample points of the wall 5 cm or more from its border, where the zippered sheet may have no hole.
+TriangleMesh wall_interior(const TriangleMesh& wall) {
+  TriangleMesh interior;
+  for (const Eigen::Vector3f& p : wall.positions) {
+    if (std::abs(p.y()) < 0.55f && p.z() > 0.25f && p.z() < 1.75f) interior.positions.push_back(p);
+  }
+  return interior;
 }
 
 TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
@@ -120,12 +131,7 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
   const ZipperResult result = scene.zipper();
   ASSERT_EQ(result.pairs.size(), 1u);
   const TriangleMesh& mesh = result.mesh;
-  // Interior sample points of the wall (5 cm from its border): no holes.
-  TriangleMesh interior;
-  for (const Eigen::Vector3f& p : wall.positions) {
-    if (std::abs(p.y()) < 0.55f && p.z() > 0.25f && p.z() < 1.75f) interior.positions.push_back(p);
-  }
-  EXPECT_LT(uncovered_share(interior, mesh, 0.005f), 0.001) << "holes in the zippered sheet";
+  EXPECT_LT(uncovered_share(wall_interior(wall), mesh, 0.005f), 0.001) << "holes in the zippered sheet";
   // No double layer: the area is the wall's (the separate meshes are much larger).
   const double true_area = 1.2 * 1.6;
   EXPECT_GT(area(separate), 1.5 * true_area);
@@ -152,10 +158,7 @@ TEST(Zipper, SeamBetweenOffsetLayersDoesNotCrease) {
     const TriangleMesh wall = wall_mesh();
     TriangleMesh shifted = wall;
     for (Eigen::Vector3f& p : shifted.positions) p.x() += offset;  // along the wall's normal
-    Scene scene;
-    const double a = 20.0 * std::numbers::pi / 180;
-    scene.add_camera(look_at({2.2 * std::cos(-a), 2.2 * std::sin(-a), 1.0}, {0, 0, 1.0}), wall);
-    scene.add_camera(look_at({2.2 * std::cos(a), 2.2 * std::sin(a), 1.0}, {0, 0, 1.0}), shifted);
+    Scene scene = two_views_of(wall, shifted);
     const ZipperResult result = scene.zipper();
     ASSERT_GT(result.stats.seam_added, 2000) << "offset " << offset;
     TriangleMesh kept = result.mesh;
@@ -164,13 +167,8 @@ TEST(Zipper, SeamBetweenOffsetLayersDoesNotCrease) {
     const int folds = count_folded_edges(result.mesh);
     EXPECT_LE(folds, 0.002 * result.stats.seam_added) << "offset " << offset;
     EXPECT_EQ(non_manifold_edges(result.mesh), 0) << "offset " << offset;
-    // Interior sample points of the wall (5 cm from its border) within the layers' offset and 3 mm
-    // of the mesh: no holes.
-    TriangleMesh interior;
-    for (const Eigen::Vector3f& p : wall.positions) {
-      if (std::abs(p.y()) < 0.55f && p.z() > 0.25f && p.z() < 1.75f) interior.positions.push_back(p);
-    }
-    const double uncovered = uncovered_share(interior, result.mesh, offset + 0.003f);
+    // No holes: the wall's interior lies within the layers' offset and 3 mm of the mesh.
+    const double uncovered = uncovered_share(wall_interior(wall), result.mesh, offset + 0.003f);
     EXPECT_LT(uncovered, 0.001) << "offset " << offset;
     std::printf("offset %.0f mm: %d seam triangles, %d folded edges, %.5f of the wall uncovered\n", 1000 * offset, result.stats.seam_added, folds,
                 uncovered);
