@@ -69,6 +69,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "seam-smoothing: must be in [0, 4] pixels"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-fairing 9", "seam-fairing: must be in [0, 8] rounds"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);

@@ -50,6 +50,9 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels, in [0, 4], halved at each --lod level (0: as "
                   "measured; -1: auto, 2 without the filter, 0 with it)")
       ->capture_default_str();
+  cmd->add_option("--seam-fairing", o.zipper.seam_fairing_iterations,
+                  "Rounds of smoothing the seams' points along their rays towards their neighbours, in [0, 8] (0: none)")
+      ->capture_default_str();
   cmd->add_option("--ownership", args.ownership,
                   "Which camera keeps a surface two see: the smoother one (smoothness: less noise), the one seeing it farther from its "
                   "border (border: more frontally), or auto (smoothness without the filter, border with it)")
@@ -82,6 +85,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"clipping_distance_m", options.zipper.clipping_distance_m},
           {"max_seam_edge_m", options.zipper.max_seam_edge_m},
           {"seam_smoothing_px", options.seam_smoothing_px()},  // auto resolved; full-resolution pixels (halved at each --lod level)
+          {"seam_fairing_iterations", options.zipper.seam_fairing_iterations},
           {"min_overlap_share", options.zipper.min_overlap_share},
           {"ownership", options.ownership() == Ownership::kBorder ? "border" : "smoothness"},  // as used, auto resolved
           {"hole_closing_px", options.zipper.hole_closing_px},

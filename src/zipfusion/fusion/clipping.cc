@@ -6,6 +6,7 @@
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include <Eigen/Eigenvalues>
+#include <array>
 #include <cmath>
 
 namespace zipfusion {
@@ -305,10 +306,9 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
   }
 }
 
-// Element function: the point of `view`'s pixel at the mean depth of the pixels around it (a
-// (2·radius + 1)² window) on the same surface (within the view's SDC threshold), in the camera
-// frame.
-Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, int radius) {
+// Element function: the mean depth of the pixels of `view` around `pixel` (a (2·radius + 1)²
+// window) on the same surface (within the view's SDC threshold); the pixel's own depth for radius 0.
+float smoothed_depth(const MeshView& view, int pixel, int radius) {
   const float same_surface = view.same_surface;
   const DepthMesh& mesh = *view.mesh;
   const int u = pixel % mesh.width, v = pixel / mesh.width;
@@ -333,47 +333,239 @@ Eigen::Vector3f smoothed_camera_point(const MeshView& view, int pixel, int radiu
       for (int x = std::max(0, u - radius); x <= std::min(mesh.width - 1, u + radius); ++x) add(row[x]);
     }
   }
-  return unproject(view.intrinsics, static_cast<float>(u), static_cast<float>(v), sum / static_cast<float>(count));
+  return sum / static_cast<float>(count);
 }
 
-// Element function: where the seam puts point p (world) of one mesh, whose camera's centre is
-// `centre`, given the other mesh's view `other` (after Turk and Levoy's consensus geometry): on
-// p's own ray, at the point nearest the midpoint of p and the other camera's surface point on
-// its ray through p, its depth interpolated bilinearly over the pixels around p's projection on
-// the same surface (within `same_surface` of p's depth there); p itself where the other camera
-// has no depth on that surface, or where α, the angle between the two cameras' rays, is 90° or
-// more. Moving along the own ray keeps the point on its pixel, so its kept triangles do not turn
-// over in its camera; it moves cos α of halfway, and both meshes' points end up close together
-// between their layers.
-// Laid out side by side in the seam, points of two layers a few millimetres apart in depth made
-// its triangles zigzag between them, at creases sharper than 60°. Tried, no fewer creases on
-// samba-4cam nor on zipper_test's offset wall: a secant step to where p's ray meets the halfway
-// surface; the other's depth as the window mean of its nearest pixel, as the seam lays out its
-// own points without the filter (the wall's creases rose from 0, 2, 4 to 6, 6, 6).
-Eigen::Vector3f consensus_point(const Eigen::Vector3f& p, const Eigen::Vector3f& centre, const MeshView& other,
-                                const Rigid3f& world_from_other, float same_surface) {
-  const ViewPoint q = project_into(other, p);
-  if (q.cell < 0) return p;
-  const DepthMesh& mesh = *other.mesh;
-  // q lies in the image (its cell is valid), so the floor is a truncation.
-  const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
-  const float* depth = mesh.depth.data() + q.cell;
-  const float z[4] = {depth[0], depth[1], depth[mesh.width], depth[mesh.width + 1]};
-  const float w[4] = {(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv};
-  float sum = 0, weight = 0;
-  for (int k = 0; k < 4; ++k) {
-    const bool same = z[k] > 0 && std::abs(z[k] - q.in_camera.z()) < same_surface;
-    sum += same ? w[k] * z[k] : 0.0f;
-    weight += same ? w[k] : 0.0f;
+// Below this cosine between a point's ray and its surface normal the ray grazes the surface: a
+// small step along the normal is a long one along the ray, so the seam does not move the point.
+constexpr float kGrazingCosine = 0.25f;
+
+// Element function: the least-squares plane z = depth + du·(x − cu) + dv·(y − cv) through the
+// depths of the pixels of `view` on a (2·radius + 1)² grid around `pixel`, `spacing` pixels apart,
+// that lie on its surface (within the view's SDC threshold), x and y in pixels from `pixel`: it
+// passes through their mean depth at their centroid (cu, cv). `sloped` is false where the pixels
+// lie on one line (no slope).
+struct SurfaceFit {
+  float depth = 0, du = 0, dv = 0, cu = 0, cv = 0;
+  bool sloped = false;
+  float depth_at(float x, float y) const { return depth + du * (x - cu) + dv * (y - cv); }
+};
+SurfaceFit fit_surface(const MeshView& view, int pixel, int radius, int spacing = 1) {
+  const DepthMesh& mesh = *view.mesh;
+  const int u = pixel % mesh.width, v = pixel / mesh.width;
+  const float centre = mesh.depth[pixel];
+  float n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sz = 0, sxz = 0, syz = 0;
+  const int reach = radius * spacing;
+  const int x0 = u - std::min(u, reach) / spacing * spacing, x1 = u + std::min(mesh.width - 1 - u, reach) / spacing * spacing;
+  const int y0 = v - std::min(v, reach) / spacing * spacing, y1 = v + std::min(mesh.height - 1 - v, reach) / spacing * spacing;
+  for (int y = y0; y <= y1; y += spacing) {
+    const float* row = mesh.depth.data() + y * mesh.width;
+    // The row's sums first, then weighed by its offset dy (half the work per pixel).
+    float rn = 0, rx = 0, rxx = 0, rz = 0, rxz = 0;
+    float dx = static_cast<float>(x0 - u);
+    for (int x = x0; x <= x1; x += spacing, dx += static_cast<float>(spacing)) {
+      // Without branches (which pixels belong is unpredictable at a border).
+      const float z = row[x];
+      const bool same = (z > 0) & (std::abs(z - centre) < view.same_surface);
+      const float w = same ? 1.0f : 0.0f, wz = same ? z : 0.0f;
+      rn += w, rx += w * dx, rxx += w * dx * dx, rz += wz, rxz += wz * dx;
+    }
+    const float dy = static_cast<float>(y - v);
+    n += rn, sx += rx, sy += rn * dy, sxx += rxx, syy += rn * dy * dy, sxy += rx * dy;
+    sz += rz, sxz += rxz, syz += rz * dy;
   }
-  if (!(weight > 0)) return p;
-  const Eigen::Vector3f on_other = world_from_other * (q.in_camera * (sum / weight / q.in_camera.z()));
-  const Eigen::Vector3f ray = (p - centre).normalized();
-  // Where the two cameras' rays meet at 90° or more (cos α ≤ 0: grazing overlaps, as of three
-  // cameras 120° apart), the nearest point to the midpoint lies on the far side of p from the
-  // other layer, and moving there pulled the layers apart.
-  if (!(ray.dot(world_from_other.linear() * q.in_camera.normalized()) > 0)) return p;
-  return centre + ray * ray.dot(0.5f * (p + on_other) - centre);
+  SurfaceFit fit;
+  fit.depth = sz / n, fit.cu = sx / n, fit.cv = sy / n;
+  // The slope from the centred sums.
+  const float cxx = sxx - sx * fit.cu, cyy = syy - sy * fit.cv, cxy = sxy - sx * fit.cv;
+  const float cxz = sxz - sx * fit.depth, cyz = syz - sy * fit.depth;
+  const float det = cxx * cyy - cxy * cxy;
+  if (det > 1e-3f * (cxx + cyy) * (cxx + cyy) && det > 0) {
+    fit.du = (cxz * cyy - cyz * cxy) / det;
+    fit.dv = (cyz * cxx - cxz * cxy) / det;
+    fit.sloped = true;
+  }
+  return fit;
+}
+
+// One mesh's surface as its seam reads it: each pixel on its ray at the mean depth of its surface
+// over the seam's smoothing window (SeamOptions::smoothing_radius; 0: as measured). Unfiltered,
+// noise moves a point along its camera's ray, which a view from another direction sees as a
+// sideways shift larger than the pixel spacing (about 7 mm for the Kinect's 1 cm at 2.5 m, seen
+// from 45°): laid out as measured, the seam's grid would fold over and the kept edges cross. The
+// mean keeps the layout as regular as the pixel grid.
+struct SeamSurface {
+  const MeshView& view;
+  Rigid3f world_from_view;
+  Eigen::Vector3f centre;  // the camera's centre, world
+  int radius = 0;
+
+  // The world point of `pixel` and the unit normal of its surface there (either sign; zero where
+  // the window's pixels lie on one line).
+  void point_and_normal(int pixel, Eigen::Vector3f& point, Eigen::Vector3f& normal) const {
+    const DepthMesh& mesh = *view.mesh;
+    // The plane fitted for the normal: on filtered depth (radius 0) over the 3×3 pixels two apart
+    // around it; where the seam smooths, over 5×5 pixels every (1 + radius / 2)th. On unfiltered
+    // depth (radius 2) the Kinect's noise (about 1 cm at 2.5 m) tilts a plane over ±2 pixels by
+    // tens of degrees (samba-4cam frames 0, 10, 20 and 30 unfiltered: 170 folded edges in the
+    // seams with a plane over the 5×5 pixels around, 142 over the 9×9, 140 over every second of
+    // those, 167 over 3×3 pixels four apart, 212 two apart); filtered, every choice gave 20–23, and
+    // 3×3 pixels two apart costs least.
+    const SurfaceFit fit = radius == 0 ? fit_surface(view, pixel, 1, 2) : fit_surface(view, pixel, 2, 1 + radius / 2);
+    const float x = static_cast<float>(pixel % mesh.width), y = static_cast<float>(pixel / mesh.width);
+    const float depth = radius == 0 ? mesh.depth[pixel] : smoothed_depth(view, pixel, radius);
+    const Eigen::Vector3f in_camera = unproject(view.intrinsics, x, y, depth);
+    point = radius == 0 ? mesh.point(pixel) : world_from_view * in_camera;
+    normal.setZero();
+    if (!fit.sloped) return;
+    // The surface's tangents along the image axes: P(x, y) = z(x, y)·r(x, y), r the ray scaled to
+    // depth 1, whose derivatives are (1/fx, 0, 0) and (0, 1/fy, 0).
+    const Eigen::Vector3f ray = in_camera / depth;
+    const Eigen::Vector3f along_x = fit.du * ray + Eigen::Vector3f(depth * view.inv_fx, 0, 0);
+    const Eigen::Vector3f along_y = fit.dv * ray + Eigen::Vector3f(0, depth * view.inv_fy, 0);
+    normal = (world_from_view.linear() * along_x.cross(along_y)).normalized();
+  }
+
+  // The depth of the surface around pixel coordinates q (in the image, with the pixel `cell` at
+  // its integer part), read as the seam reads its own points: interpolated bilinearly over the
+  // pixels of `cell`'s 2×2 within `same_surface` of `near_depth` as measured (radius 0), or from
+  // the plane fitted over the window of the nearest such pixel; 0 where none is.
+  float depth_near(const ViewPoint& q, float near_depth, float same_surface) const {
+    const DepthMesh& mesh = *view.mesh;
+    // q lies in the image (its cell is valid), so the floor is a truncation.
+    const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
+    const int pixels[4] = {q.cell, q.cell + 1, q.cell + mesh.width, q.cell + mesh.width + 1};
+    const float w[4] = {(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv};
+    float sum = 0, weight = 0;
+    int nearest = -1;
+    for (int k = 0; k < 4; ++k) {
+      const float z = mesh.depth[pixels[k]];
+      if (!(z > 0 && std::abs(z - near_depth) < same_surface)) continue;
+      sum += w[k] * z;
+      weight += w[k];
+      if (nearest < 0 || w[k] > w[nearest]) nearest = k;
+    }
+    if (nearest < 0) return 0;
+    if (radius == 0) return sum / weight;
+    const SurfaceFit fit = fit_surface(view, pixels[nearest], radius);
+    return fit.depth_at(fu - static_cast<float>(nearest & 1), fv - static_cast<float>(nearest >> 1));
+  }
+};
+
+// Element function: where the seam puts point p (world) of one mesh, whose surface normal there
+// is `normal` (zero: unknown) and whose camera's ray through it is `ray` (unit), given the other
+// mesh's surface `other` (after Turk and Levoy's consensus geometry): on p's own ray, where it
+// meets the surface halfway between the two meshes' layers. The other layer's point is the other
+// camera's surface point on its ray through p, its depth read around p's projection on the same
+// surface (within `same_surface` of p's depth there) as the seam reads its own points
+// (SeamSurface::depth_near); the two layers are taken as parallel, at the distance of the two
+// points along the normal. p itself where the other camera has no depth on that surface or the
+// ray grazes the surface; the move is at most `same_surface`. Moving along the own ray keeps the
+// point on its pixel, so its kept triangles do not turn over in its own camera.
+// Laid out side by side in the seam, points of two layers a few millimetres apart in depth made
+// its triangles zigzag between them, at creases sharper than 60°. Before 2026-12-03 the point
+// moved to the place on its ray nearest the midpoint of the two points: cos α of halfway, α the
+// angle between the two cameras' rays, which on a ring of four cameras is near 90° over most of
+// a seam, so it hardly moved (docs/design.md).
+Eigen::Vector3f consensus_point(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray, const SeamSurface& other,
+                                float same_surface) {
+  const float ray_along_normal = ray.dot(normal);
+  if (!(std::abs(ray_along_normal) > kGrazingCosine)) return p;
+  const ViewPoint q = project_into(other.view, p);
+  if (q.cell < 0) return p;
+  const float depth = other.depth_near(q, q.in_camera.z(), same_surface);
+  if (!(depth > 0)) return p;
+  const Eigen::Vector3f on_other = other.world_from_view * (q.in_camera * (depth / q.in_camera.z()));
+  const float step = std::clamp(0.5f * normal.dot(on_other - p) / ray_along_normal, -same_surface, same_surface);
+  return p + step * ray;
+}
+
+// How the seam is laid out in 2-D: through the virtual camera halfway between the two cameras,
+// or (where a point lies behind it) onto the seam's PCA plane.
+struct SeamLayout {
+  bool pca = false;
+  Eigen::Matrix3f world_from_virtual = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
+  Eigen::Vector3f mean = Eigen::Vector3f::Zero(), e1 = Eigen::Vector3f::UnitX(), e2 = Eigen::Vector3f::UnitY();
+
+  Eigen::Vector2f operator()(const Eigen::Vector3f& p) const {
+    if (pca) return {(p - mean).dot(e1), (p - mean).dot(e2)};
+    const Eigen::Vector3f q = world_from_virtual.transpose() * (p - viewpoint);
+    return {q.x() / q.z(), q.y() / q.z()};
+  }
+};
+
+// Twice the signed area of the 2-D triangle (p0, p1, p2).
+float signed_area2(const Eigen::Vector2f& p0, const Eigen::Vector2f& p1, const Eigen::Vector2f& p2) {
+  const Eigen::Vector2f e1 = p1 - p0, e2 = p2 - p0;
+  return e1.x() * e2.y() - e1.y() * e2.x();
+}
+
+// Scratch of fair_seam.
+struct FairingScratch {
+  std::vector<std::array<int, 3>> faces;
+  std::vector<Eigen::Vector3f> sum, next;
+  std::vector<int> count;
+  std::vector<Eigen::Vector2f> flat_next;
+  std::vector<std::uint8_t> moved;
+};
+
+// Fairs the seam's points along their own rays (a Laplacian "umbrella" step restricted to the
+// ray): each moves by half the distance, along its surface normal, to the mean of its neighbours in
+// the triangulation no farther than max_edge (each counted once for every face the two share), for
+// `iterations` Jacobi rounds, by at most `most` a round. The consensus leaves the two meshes'
+// points a millimetre or so apart in depth (sensor noise, layers not quite parallel); between
+// points 3–6 mm apart that is still a crease. A point that is a vertex of two seams (`fixed`),
+// whose ray grazes its surface or whose normal is unknown stays, as does one with fewer than three
+// such neighbours. A move that would turn a face over in the layout is undone, so every face keeps
+// facing the virtual camera; `flat` holds the points' layout and is kept up to date.
+void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<Eigen::Vector3f>& rays,
+               const std::vector<std::uint8_t>& fixed, const SeamLayout& layout, float max_edge2, float most, int iterations,
+               std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, FairingScratch& s) {
+  if (triangulation.dimension() != 2 || iterations == 0) return;
+  // The faces as plain index triples: CGAL's iterators cost more than the work done per face.
+  s.faces.clear();
+  for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) {
+    const int i0 = f->vertex(0)->info().index, i1 = f->vertex(1)->info().index, i2 = f->vertex(2)->info().index;
+    if (i0 >= 0 && i1 >= 0 && i2 >= 0) s.faces.push_back({i0, i1, i2});
+  }
+  const size_t n = positions.size();
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    s.sum.assign(n, Eigen::Vector3f::Zero());
+    s.count.assign(n, 0);
+    for (const auto& face : s.faces) {
+      for (int k = 0; k < 3; ++k) {
+        const int i = face[k], j = face[(k + 1) % 3];
+        if ((positions[i] - positions[j]).squaredNorm() > max_edge2) continue;
+        s.sum[i] += positions[j], s.sum[j] += positions[i];
+        ++s.count[i], ++s.count[j];
+      }
+    }
+    s.next = positions;
+    s.flat_next = flat;
+    s.moved.assign(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+      const float ray_along_normal = rays[i].dot(normals[i]);
+      if (s.count[i] < 3 || (!fixed.empty() && fixed[i]) || !(std::abs(ray_along_normal) > kGrazingCosine)) continue;
+      const Eigen::Vector3f mean = s.sum[i] / static_cast<float>(s.count[i]);
+      const float step = std::clamp(0.5f * normals[i].dot(mean - positions[i]) / ray_along_normal, -most, most);
+      s.next[i] = positions[i] + step * rays[i];
+      s.flat_next[i] = layout(s.next[i]);
+      s.moved[i] = 1;
+    }
+    // Undo the moves of any face turned over, until none is (each pass only undoes, so it ends).
+    for (bool undone = true; undone;) {
+      undone = false;
+      for (const auto& [i0, i1, i2] : s.faces) {
+        if (!(s.moved[i0] | s.moved[i1] | s.moved[i2])) continue;
+        if (signed_area2(s.flat_next[i0], s.flat_next[i1], s.flat_next[i2]) * signed_area2(flat[i0], flat[i1], flat[i2]) > 0) continue;
+        for (const int i : {i0, i1, i2}) s.next[i] = positions[i], s.flat_next[i] = flat[i], s.moved[i] = 0;
+        undone = true;
+      }
+    }
+    positions.swap(s.next);
+    flat.swap(s.flat_next);
+  }
 }
 
 }  // namespace
@@ -425,67 +617,60 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   if (seam.vertices.size() < 3) return;
 
   // Where the seam puts its points, formed once (each face reads three): each on its own pixel's
-  // ray at the mean depth of the surface around it. Unfiltered, noise moves a point along its
-  // camera's ray, which a view from another direction sees as a sideways shift larger than the
-  // pixel spacing (about 7 mm for the Kinect's 1 cm at 2.5 m, seen from 45°): the grid would fold
-  // over and the kept edges cross. The mean keeps the layout as regular as the pixel grid. Each
-  // point then moves towards the other mesh's layer (consensus_point), so the two meshes' points
-  // lie close together between their layers. The output takes the same positions: where it kept
+  // ray as its seam reads its surface (SeamSurface), then moved to halfway between the two meshes'
+  // layers (consensus_point), so that the two meshes' points lie close together; after the
+  // triangulation they are faired (fair_seam). The output takes the same positions: where it kept
   // the measured ones, a face the layout saw from the front could face away in 3-D, folded over
   // its neighbours.
   std::vector<Eigen::Vector3f>& positions = seam.positions;
   positions.resize(seam.vertices.size());
-  const Rigid3f world_from_a = a.depth_from_world.inverse(Eigen::Isometry), world_from_b = b.depth_from_world.inverse(Eigen::Isometry);
+  std::vector<Eigen::Vector3f> normals(seam.vertices.size()), rays(seam.vertices.size());
+  const SeamSurface surface_a{a, a.depth_from_world.inverse(Eigen::Isometry), centre_a, options.smoothing_radius};
+  const SeamSurface surface_b{b, b.depth_from_world.inverse(Eigen::Isometry), centre_b, options.smoothing_radius};
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     const PixelVertex& v = seam.vertices[i];
-    const bool in_a = v.camera == a.camera;
-    const Eigen::Vector3f measured = options.smoothing_radius == 0
-                                         ? (in_a ? a.mesh : b.mesh)->point(v.pixel)
-                                         : (in_a ? world_from_a : world_from_b) * smoothed_camera_point(in_a ? a : b, v.pixel, options.smoothing_radius);
-    positions[i] = !taken.shared.empty() && taken.shared[i] ? measured
-                   : in_a ? consensus_point(measured, centre_a, b, world_from_b, options.ownership_distance)
-                          : consensus_point(measured, centre_b, a, world_from_a, options.ownership_distance);
+    const SeamSurface &own = v.camera == a.camera ? surface_a : surface_b, &other = v.camera == a.camera ? surface_b : surface_a;
+    Eigen::Vector3f measured;
+    own.point_and_normal(v.pixel, measured, normals[i]);
+    rays[i] = (measured - own.centre).normalized();
+    positions[i] = !taken.shared.empty() && taken.shared[i] ? measured : consensus_point(measured, normals[i], rays[i], other, options.ownership_distance);
   }
 
   // The virtual camera halfway between the two.
+  SeamLayout layout;
   const Eigen::Quaternionf rotation_a(a.depth_from_world.linear().transpose());
   const Eigen::Quaternionf rotation_b(b.depth_from_world.linear().transpose());
-  const Eigen::Matrix3f world_from_virtual = rotation_a.slerp(0.5f, rotation_b).toRotationMatrix();
-  const Eigen::Vector3f viewpoint = 0.5f * (centre_a + centre_b);
-
-  std::vector<std::pair<Kernel::Point_2, SeamInfo>> points;
-  points.reserve(seam.vertices.size());
-  bool behind = false;
-  for (size_t i = 0; i < seam.vertices.size(); ++i) {
-    const Eigen::Vector3f q = world_from_virtual.transpose() * (positions[i] - viewpoint);
-    if (q.z() < 0.05f) {
-      behind = true;
+  layout.world_from_virtual = rotation_a.slerp(0.5f, rotation_b).toRotationMatrix();
+  layout.viewpoint = 0.5f * (centre_a + centre_b);
+  for (const Eigen::Vector3f& p : positions) {
+    if ((layout.world_from_virtual.transpose() * (p - layout.viewpoint)).z() < 0.05f) {
+      layout.pca = true;
       break;
     }
-    points.emplace_back(Kernel::Point_2(q.x() / q.z(), q.y() / q.z()), SeamInfo{static_cast<int>(i)});
   }
-  if (behind) {
+  if (layout.pca) {
     // PCA plane of the seam (the paper's projection).
-    Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-    for (const Eigen::Vector3f& p : positions) mean += p;
-    mean /= static_cast<float>(positions.size());
+    for (const Eigen::Vector3f& p : positions) layout.mean += p;
+    layout.mean /= static_cast<float>(positions.size());
     Eigen::Matrix3f covariance = Eigen::Matrix3f::Zero();
     for (const Eigen::Vector3f& p : positions) {
-      const Eigen::Vector3f d = p - mean;
+      const Eigen::Vector3f d = p - layout.mean;
       covariance += d * d.transpose();
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> pca(covariance);
-    Eigen::Vector3f e1 = pca.eigenvectors().col(2);
-    const Eigen::Vector3f e2 = pca.eigenvectors().col(1);
+    layout.e1 = pca.eigenvectors().col(2);
+    layout.e2 = pca.eigenvectors().col(1);
     // Make (e1, e2) a frame seen from behind by the cameras, like image axes (x right, y down):
     // then the faces' order is flipped below exactly as for the virtual camera.
-    if (e1.cross(e2).dot(viewpoint - mean) > 0) e1 = -e1;
-    points.clear();
-    for (size_t i = 0; i < seam.vertices.size(); ++i) {
-      const Eigen::Vector3f d = positions[i] - mean;
-      points.emplace_back(Kernel::Point_2(d.dot(e1), d.dot(e2)), SeamInfo{static_cast<int>(i)});
-    }
+    if (layout.e1.cross(layout.e2).dot(layout.viewpoint - layout.mean) > 0) layout.e1 = -layout.e1;
     seam.used_pca = true;
+  }
+  std::vector<Eigen::Vector2f> flat(seam.vertices.size());
+  std::vector<std::pair<Kernel::Point_2, SeamInfo>> points;
+  points.reserve(seam.vertices.size());
+  for (size_t i = 0; i < seam.vertices.size(); ++i) {
+    flat[i] = layout(positions[i]);
+    points.emplace_back(Kernel::Point_2(flat[i].x(), flat[i].y()), SeamInfo{static_cast<int>(i)});
   }
 
   // The seam vertices come in the order their triangles were collected, along the boundaries, so
@@ -527,6 +712,8 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     triangulation.insert_constraint(handle[i], handle[j]);
   }
   const float max_edge2 = options.max_edge * options.max_edge;
+  FairingScratch fairing;
+  fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat, fairing);
   // Is the seam triangle of these vertices output? Not with an edge longer than max_edge, nor over
   // a kept triangle of either mesh (the seam would double the surface there).
   auto output = [&](int i0, int i1, int i2) {

@@ -13,15 +13,16 @@
 //! fallback when a point lies behind the virtual camera (cameras facing each other).
 //!
 //! The points are projected, and output, where the seam puts them: on their pixel's ray at the
-//! mean depth of their surface around it (SeamOptions::smoothing_radius), moved towards
-//! the other camera's surface (consensus), the same positions for both. A triangle that faces the
-//! virtual camera in 2-D then faces it in 3-D too (on the PCA fallback: faces the side of the
+//! mean depth of their surface around it (SeamOptions::smoothing_radius), moved to halfway
+//! between the two meshes' layers (consensus), the same positions for both. A triangle that faces
+//! the virtual camera in 2-D then faces it in 3-D too (on the PCA fallback: faces the side of the
 //! plane the cameras are on), so no seam triangle turns over, as they did wherever a layout at
 //! smoothed depth and output at measured depth differed (docs/design.md). The consensus brings
-//! both meshes' points close together between their two layers (a pixel that is a vertex of two
-//! seams keeps its place), so the seam does not zigzag between them; a crease left sharper than
-//! 60° is flipped out where the other diagonal of its quadrilateral is smoother. A few remain
-//! (docs/design.md).
+//! both meshes' points close together (a pixel that is a vertex of two seams keeps its place), so
+//! the seam does not zigzag between the layers; after the triangulation the points are faired
+//! along their rays (SeamOptions::fairing_iterations) without turning a face over in the layout,
+//! and a crease left sharper than 60° is flipped out where the other diagonal of its quadrilateral
+//! is smoother. A few remain (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -43,6 +44,7 @@ struct SeamOptions {
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
   float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved towards it within this depth
   int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
+  int fairing_iterations = 1;       // rounds of smoothing the seam's points along their rays (fair_seam); 0: none
 };
 
 struct Seam {

@@ -61,6 +61,7 @@ void ZipperOptions::validate() const {
   if (!(smoothness_exponent > 0 && smoothness_exponent <= 128)) throw InvalidInput("smoothness-exponent: must be in (0, 128]");
   if (!(max_seam_edge_m > 0 && max_seam_edge_m < 0.5)) throw InvalidInput("max-seam-edge: must be in (0, 0.5) metres");
   if (seam_smoothing_px < -1 || seam_smoothing_px > 4) throw InvalidInput("seam-smoothing: must be in [0, 4] pixels, or -1 for auto");
+  if (seam_fairing_iterations < 0 || seam_fairing_iterations > 8) throw InvalidInput("seam-fairing: must be in [0, 8] rounds");
   if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("min-overlap: must be in [0, 1)");
 }
 
@@ -203,7 +204,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
                                  .ownership_distance = d_r,
-                                 .smoothing_radius = options.seam_smoothing_px < 0 ? 2 : options.seam_smoothing_px};
+                                 .smoothing_radius = options.seam_smoothing_px < 0 ? 2 : options.seam_smoothing_px,
+                                 .fairing_iterations = options.seam_fairing_iterations};
   // Two phases. The seams take their triangles out of the meshes in rounds (the pairs of a round
   // share no camera, so each mesh is edited in a fixed order); each taken triangle is marked
   // with its round. Then every seam is triangulated at once, the pairs spread over the threads by

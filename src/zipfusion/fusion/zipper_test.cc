@@ -152,7 +152,8 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
 // more than 120° apart). Points of both layers laid out side by side made the seam's triangles
 // zigzag between the layers: 96, 141 and 166 creases for 2, 4 and 6 mm before seam points were
 // moved towards the other layer (consensus_point) and creases flipped out (75, 113 and 141 with
-// the flips alone). Neither may open a hole.
+// the flips alone; 0, 2 and 4 with both while the consensus moved points cos α of halfway, before
+// the seam was faired). Neither may open a hole.
 TEST(Zipper, SeamBetweenOffsetLayersDoesNotCrease) {
   for (const float offset : {0.002f, 0.004f, 0.006f}) {
     const TriangleMesh wall = wall_mesh();
@@ -165,7 +166,7 @@ TEST(Zipper, SeamBetweenOffsetLayersDoesNotCrease) {
     kept.triangles.resize(kept.triangles.size() - result.stats.seam_added);
     EXPECT_EQ(count_folded_edges(kept), 0) << "offset " << offset;
     const int folds = count_folded_edges(result.mesh);
-    EXPECT_LE(folds, 0.002 * result.stats.seam_added) << "offset " << offset;
+    EXPECT_LE(folds, 0.0005 * result.stats.seam_added) << "offset " << offset;
     EXPECT_EQ(non_manifold_edges(result.mesh), 0) << "offset " << offset;
     // No holes: the wall's interior lies within the layers' offset and 3 mm of the mesh.
     const double uncovered = uncovered_share(wall_interior(wall), result.mesh, offset + 0.003f);

@@ -170,10 +170,10 @@ TEST(ZipperQuality, NoiseFreeFourCameras) {
   EXPECT_GE(q.zipper.completeness, 0.95);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
-  // The seams add hardly a fold to those of the cameras' own meshes (15 at silhouettes): 18 with
-  // the seam's points output where it lays them out (19 before the consensus and the crease
-  // flips); 363 when output at their measured depth.
-  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges + 10);
+  // The seams add hardly a fold to those of the cameras' own meshes (15 at silhouettes): 13 with
+  // the seam's points moved halfway between the layers and faired (18 before, 19 before the
+  // consensus and the crease flips); 363 when output at their measured depth.
+  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges + 5);
   EXPECT_LE(q.zipper.accuracy_mean_mm, q.separate.accuracy_mean_mm + 0.2);
   EXPECT_EQ(q.zipper.min_cameras_used, 4);
 }
@@ -192,10 +192,11 @@ void expect_noisy_ring_targets(int cameras) {
   EXPECT_LE(q.zipper_area_m2, q.separate_area_m2 - 0.65 * q.redundant_area_m2);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
-  // Folds: the seams add at most as many as the meshes have (6 cameras: 50 against 72, 104 before
-  // the consensus and the crease flips, 172 when the seam's points were output at their measured
-  // depth; 3 cameras: 28 against 37, 31 before).
-  EXPECT_LE(q.zipper.folded_edges, 2 * q.separate.folded_edges);
+  // Folds: the zipper has fewer than the separate meshes (6 cameras: 34 against 72, 50 before the
+  // seam's points were moved halfway between the layers and faired, 104 before the consensus and
+  // the crease flips, 172 when they were output at their measured depth; 3 cameras: 19 against
+  // 37, 28 and 31 before).
+  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);
   if (cameras >= 4) {
     EXPECT_GE(q.zipper.completeness, 0.95);
   } else {
@@ -238,7 +239,7 @@ TEST(ZipperQuality, DeadCameraIsLeftOut) {
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
   EXPECT_EQ(q.zipper.min_cameras_used, 3);
   EXPECT_EQ(q.zipper.max_cameras_used, 3);
-  EXPECT_LE(q.zipper.folded_edges, 2 * q.separate.folded_edges);
+  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);  // 17 against 30 (27 before the seam was faired)
   // Covering the rest: as much of the observed truth as the separate meshes of the three cameras.
   EXPECT_GE(q.zipper.completeness, q.separate.completeness - 0.01);
 }
