@@ -231,6 +231,13 @@ void set_face_info(Delaunay::Face_handle f, const std::vector<Eigen::Vector3f>& 
   if (info.output) info.normal = (positions[i1] - positions[i0]).cross(positions[i2] - positions[i0]).normalized();
 }
 
+// Twice the signed area of the 2-D triangle (p0, p1, p2), positive counter-clockwise; in double,
+// where the differences of the float coordinates are exact.
+double signed_area2(const Eigen::Vector2f& p0, const Eigen::Vector2f& p1, const Eigen::Vector2f& p2) {
+  const Eigen::Vector2d e1 = p1.cast<double>() - p0.cast<double>(), e2 = p2.cast<double>() - p0.cast<double>();
+  return e1.x() * e2.y() - e1.y() * e2.x();
+}
+
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
 // Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
 // by the layout alone; where the two meshes' points lie a few millimetres apart in depth, the
@@ -242,10 +249,11 @@ void set_face_info(Delaunay::Face_handle f, const std::vector<Eigen::Vector3f>& 
 // than max_edge, and the sharpest crease over the quadrilateral's five edges becomes less sharp;
 // otherwise it is flipped back. A flip takes its two faces over (CGAL's data structure reuses
 // them), so only theirs needs setting again. Every finite face's info must be set
-// (set_face_info) and is kept so. `candidates` is scratch.
+// (set_face_info) and is kept so. `flat`: the points' layout, which after fairing is no longer
+// CGAL's (fair_seam). `candidates` is scratch.
 template <typename Output>
-void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, float max_edge2, Output&& output,
-                      std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const std::vector<Eigen::Vector2f>& flat,
+                      float max_edge2, Output&& output, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
   constexpr float kCreaseCosine = -0.5f;
   // The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is not
@@ -279,9 +287,10 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
     if (!triangulation.is_edge(u, v, f, i) || !creased(f, i)) continue;
     const Delaunay::Face_handle g = f->neighbor(i);
     const Delaunay::Vertex_handle w = f->vertex(i), x = g->vertex(triangulation.mirror_index(f, i));
-    const CGAL::Orientation side_u = triangulation.orientation(w->point(), x->point(), u->point());
-    const CGAL::Orientation side_v = triangulation.orientation(w->point(), x->point(), v->point());
-    if (side_u == CGAL::COLLINEAR || side_v == CGAL::COLLINEAR || side_u == side_v) continue;
+    // Both faces are output, so every corner is a seam vertex.
+    const Eigen::Vector2f &flat_w = flat[w->info().index], &flat_x = flat[x->info().index];
+    const double side_u = signed_area2(flat_w, flat_x, flat[u->info().index]), side_v = signed_area2(flat_w, flat_x, flat[v->info().index]);
+    if (!((side_u > 0 && side_v < 0) || (side_u < 0 && side_v > 0))) continue;
     if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
     const float before = sharpest(f, i);
     triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
@@ -380,7 +389,7 @@ SurfaceFit fit_surface(const MeshView& view, int pixel, int radius, int spacing 
   const float cxx = sxx - sx * fit.cu, cyy = syy - sy * fit.cv, cxy = sxy - sx * fit.cv;
   const float cxz = sxz - sx * fit.depth, cyz = syz - sy * fit.depth;
   const float det = cxx * cyy - cxy * cxy;
-  if (det > 1e-3f * (cxx + cyy) * (cxx + cyy) && det > 0) {
+  if (det > 1e-3f * (cxx + cyy) * (cxx + cyy)) {
     fit.du = (cxz * cyy - cyz * cxy) / det;
     fit.dv = (cyz * cxx - cxz * cxy) / det;
     fit.sloped = true;
@@ -446,7 +455,7 @@ struct SeamSurface {
       if (nearest < 0 || w[k] > w[nearest]) nearest = k;
     }
     if (nearest < 0) return 0;
-    if (radius == 0) return sum / weight;
+    if (radius == 0) return weight > 0 ? sum / weight : 0.0f;
     const SurfaceFit fit = fit_surface(view, pixels[nearest], radius);
     return fit.depth_at(fu - static_cast<float>(nearest & 1), fv - static_cast<float>(nearest >> 1));
   }
@@ -495,12 +504,6 @@ struct SeamLayout {
   }
 };
 
-// Twice the signed area of the 2-D triangle (p0, p1, p2).
-float signed_area2(const Eigen::Vector2f& p0, const Eigen::Vector2f& p1, const Eigen::Vector2f& p2) {
-  const Eigen::Vector2f e1 = p1 - p0, e2 = p2 - p0;
-  return e1.x() * e2.y() - e1.y() * e2.x();
-}
-
 // Scratch of fair_seam.
 struct FairingScratch {
   std::vector<std::array<int, 3>> faces;
@@ -517,7 +520,7 @@ struct FairingScratch {
 // points a millimetre or so apart in depth (sensor noise, layers not quite parallel); between
 // points 3–6 mm apart that is still a crease. A point that is a vertex of two seams (`fixed`),
 // whose ray grazes its surface or whose normal is unknown stays, as does one with fewer than three
-// such neighbours. A move that would turn a face over in the layout is undone, so every face keeps
+// such neighbour entries (two faces). A move that would turn a face over in the layout is undone, so every face keeps
 // facing the virtual camera; `flat` holds the points' layout and is kept up to date.
 void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<Eigen::Vector3f>& rays,
                const std::vector<std::uint8_t>& fixed, const SeamLayout& layout, float max_edge2, float most, int iterations,
@@ -558,7 +561,8 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
       undone = false;
       for (const auto& [i0, i1, i2] : s.faces) {
         if (!(s.moved[i0] | s.moved[i1] | s.moved[i2])) continue;
-        if (signed_area2(s.flat_next[i0], s.flat_next[i1], s.flat_next[i2]) * signed_area2(flat[i0], flat[i1], flat[i2]) > 0) continue;
+        const double before = signed_area2(flat[i0], flat[i1], flat[i2]), after = signed_area2(s.flat_next[i0], s.flat_next[i1], s.flat_next[i2]);
+        if ((before > 0 && after > 0) || (before < 0 && after < 0)) continue;
         for (const int i : {i0, i1, i2}) s.next[i] = positions[i], s.flat_next[i] = flat[i], s.moved[i] = 0;
         undone = true;
       }
@@ -725,7 +729,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   };
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
-  flip_out_creases(triangulation, positions, max_edge2, output, crease_candidates);
+  flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];
