@@ -497,9 +497,11 @@ struct SeamLayout {
   Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
   Eigen::Vector3f mean = Eigen::Vector3f::Zero(), e1 = Eigen::Vector3f::UnitX(), e2 = Eigen::Vector3f::UnitY();
 
+  // World point p in the virtual camera's frame.
+  Eigen::Vector3f in_virtual(const Eigen::Vector3f& p) const { return world_from_virtual.transpose() * (p - viewpoint); }
   Eigen::Vector2f operator()(const Eigen::Vector3f& p) const {
     if (pca) return {(p - mean).dot(e1), (p - mean).dot(e2)};
-    const Eigen::Vector3f q = world_from_virtual.transpose() * (p - viewpoint);
+    const Eigen::Vector3f q = in_virtual(p);
     return {q.x() / q.z(), q.y() / q.z()};
   }
 };
@@ -647,7 +649,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   layout.world_from_virtual = rotation_a.slerp(0.5f, rotation_b).toRotationMatrix();
   layout.viewpoint = 0.5f * (centre_a + centre_b);
   for (const Eigen::Vector3f& p : positions) {
-    if ((layout.world_from_virtual.transpose() * (p - layout.viewpoint)).z() < 0.05f) {
+    if (layout.in_virtual(p).z() < 0.05f) {
       layout.pca = true;
       break;
     }
