@@ -51,7 +51,8 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "measured; -1: auto, 2 without the filter, 0 with it)")
       ->capture_default_str();
   cmd->add_option("--seam-fairing", o.zipper.seam_fairing_iterations,
-                  "Rounds of smoothing the seams' points along their rays towards their neighbours, in [0, 8] (0: none)")
+                  "Rounds of smoothing the seams' points along their rays towards their neighbours, in [0, 8], then the corners of the creases "
+                  "left (0: neither)")
       ->capture_default_str();
   cmd->add_option("--ownership", args.ownership,
                   "Which camera keeps a surface two see: the smoother one (smoothness: less noise), the one seeing it farther from its "

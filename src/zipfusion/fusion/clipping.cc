@@ -6,6 +6,7 @@
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -499,6 +500,9 @@ struct SeamLayout {
 
   // World point p in the virtual camera's frame.
   Eigen::Vector3f in_virtual(const Eigen::Vector3f& p) const { return world_from_virtual.transpose() * (p - viewpoint); }
+  // The unit direction along which p moves without moving in the layout: the virtual camera's
+  // ray through it, or the PCA plane's normal.
+  Eigen::Vector3f depth_direction(const Eigen::Vector3f& p) const { return pca ? e1.cross(e2) : (p - viewpoint).normalized(); }
   Eigen::Vector2f operator()(const Eigen::Vector3f& p) const {
     if (pca) return {(p - mean).dot(e1), (p - mean).dot(e2)};
     const Eigen::Vector3f q = in_virtual(p);
@@ -571,6 +575,117 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
     }
     positions.swap(s.next);
     flat.swap(s.flat_next);
+  }
+}
+
+// Rounds of relax_creases: on samba-4cam frames 0, 10, 20 and 30 the folded edges with a seam
+// face on either side went 23 → 8 filtered with one round, 6 with two or more (unfiltered 140 →
+// 115, 116 and 118 with four).
+constexpr int kCreaseRelaxRounds = 2;
+
+// Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two
+// output faces still meet at a crease sharper than 60°, each corner of the two moves to the plane
+// through the mean of its triangulation neighbours (no farther than max_edge) along its normal,
+// the full umbrella step that fair_seam takes half of, by at most `most`. It moves along the
+// layout's own line of sight (SeamLayout::depth_direction), so its place in the layout stays and
+// no face turns over there, which a move along its camera's ray made of most of them (these
+// creases are often slivers, between points a few millimetres apart in depth across edges of a
+// few millimetres). That takes it off its pixel's ray, on a ring of four by about sin 45° of the
+// step (most steps on samba-4cam are under a millimetre, the largest 7 mm, about a pixel's
+// footprint); the kept triangles' folds did not change. A move that would change
+// whether a face around the point is output (a longer edge, a face over a kept triangle) is
+// halved, twice, then given up, so the seam keeps its faces. Each of `rounds` rounds looks again
+// only at the creases around the points that moved. `fixed`, normals as in fair_seam; faces' info
+// as in flip_out_creases, kept up to date.
+template <typename Output>
+void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
+                   const SeamLayout& layout, float max_edge2, float most, int rounds, std::vector<Eigen::Vector3f>& positions,
+                   std::vector<Eigen::Vector2f>& flat, Output&& output) {
+  if (triangulation.dimension() != 2 || rounds == 0) return;
+  constexpr float kCreaseCosine = -0.5f;
+  auto is_seam_face = [](Delaunay::Face_handle f) {
+    return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
+  };
+  std::vector<Delaunay::Vertex_handle> corners;
+  // Queues the four corners of each creased edge of face f.
+  auto queue_creases_of = [&](Delaunay::Face_handle f) {
+    if (triangulation.is_infinite(f) || !f->info().output) return;
+    for (int i = 0; i < 3; ++i) {
+      const Delaunay::Face_handle g = f->neighbor(i);
+      if (triangulation.is_infinite(g) || !g->info().output || f->info().normal.dot(g->info().normal) >= kCreaseCosine) continue;
+      corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), g->vertex(triangulation.mirror_index(f, i))});
+    }
+  };
+  for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) queue_creases_of(f);
+  // The faces around the point being moved, with their signed areas and output before the move
+  // (a Delaunay vertex rarely has more than 16 faces; one with more stays).
+  constexpr size_t kMostFaces = 16;
+  std::array<Delaunay::Face_handle, kMostFaces> around;
+  std::array<double, kMostFaces> area_before;
+  std::array<bool, kMostFaces> output_before;
+  auto area2 = [&](Delaunay::Face_handle f) {
+    return signed_area2(flat[f->vertex(0)->info().index], flat[f->vertex(1)->info().index], flat[f->vertex(2)->info().index]);
+  };
+  std::vector<Delaunay::Vertex_handle> moved;
+  for (int round = 0; round < rounds && !corners.empty(); ++round) {
+    // In the seam's order of points (the moves are Gauss–Seidel, so the result depends on the
+    // order, and the handles' addresses differ from run to run).
+    std::sort(corners.begin(), corners.end(), [](Delaunay::Vertex_handle x, Delaunay::Vertex_handle y) { return x->info().index < y->info().index; });
+    corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
+    moved.clear();
+    for (const Delaunay::Vertex_handle v : corners) {
+      const int i = v->info().index;
+      if (i < 0 || (!fixed.empty() && fixed[i])) continue;
+      const Eigen::Vector3f direction = layout.depth_direction(positions[i]);
+      const float along_normal = direction.dot(normals[i]);
+      if (!(std::abs(along_normal) > kGrazingCosine)) continue;
+      size_t faces = 0;
+      bool too_many = false;
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      int count = 0;
+      Delaunay::Face_circulator f = triangulation.incident_faces(v), first = f;
+      do {
+        if (triangulation.is_infinite(f)) continue;
+        if (is_seam_face(f)) {
+          too_many = too_many || faces == kMostFaces;
+          if (!too_many) around[faces++] = f;
+        }
+        const int k = f->index(v);
+        for (const int j : {f->vertex(Delaunay::cw(k))->info().index, f->vertex(Delaunay::ccw(k))->info().index}) {
+          if (j >= 0 && (positions[j] - positions[i]).squaredNorm() <= max_edge2) sum += positions[j], ++count;
+        }
+      } while (++f != first);
+      // Each neighbour counts once for every face the two share: at least two faces.
+      if (too_many || count < 4) continue;
+      const float step = std::clamp(normals[i].dot(sum / static_cast<float>(count) - positions[i]) / along_normal, -most, most);
+      for (size_t k = 0; k < faces; ++k) area_before[k] = area2(around[k]), output_before[k] = around[k]->info().output;
+      const Eigen::Vector3f start = positions[i];
+      const Eigen::Vector2f flat_start = flat[i];
+      bool keeps = false;
+      for (float part = 1.0f; part > 0.2f && !keeps; part *= 0.5f) {
+        positions[i] = start + part * step * direction;
+        flat[i] = layout(positions[i]);
+        keeps = true;
+        for (size_t k = 0; k < faces && keeps; ++k) {
+          const double area = area2(around[k]);
+          const Delaunay::Face_handle g = around[k];
+          keeps = ((area_before[k] > 0 && area > 0) || (area_before[k] < 0 && area < 0)) &&
+                  output(g->vertex(0)->info().index, g->vertex(1)->info().index, g->vertex(2)->info().index) == output_before[k];
+        }
+      }
+      if (!keeps) {
+        positions[i] = start, flat[i] = flat_start;
+        continue;
+      }
+      for (size_t k = 0; k < faces; ++k) set_face_info(around[k], positions, output);
+      moved.push_back(v);
+    }
+    corners.clear();
+    for (const Delaunay::Vertex_handle v : moved) {
+      Delaunay::Face_circulator f = triangulation.incident_faces(v), first = f;
+      do queue_creases_of(f);
+      while (++f != first);
+    }
   }
 }
 
@@ -732,6 +847,9 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
   flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
+  if (options.fairing_iterations > 0) {
+    relax_creases(triangulation, normals, taken.shared, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds, positions, flat, output);
+  }
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];

@@ -22,7 +22,8 @@
 //! the seam does not zigzag between the layers; after the triangulation the points are faired
 //! along their rays (SeamOptions::fairing_iterations) without turning a face over in the layout,
 //! and a crease left sharper than 60° is flipped out where the other diagonal of its quadrilateral
-//! is smoother. A few remain (docs/design.md).
+//! is smoother; the corners of any crease still left move towards their neighbours along the
+//! layout's line of sight. A few remain (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -44,7 +45,7 @@ struct SeamOptions {
   float max_edge = 0.04f;           // longest edge of a seam triangle, metres
   float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved towards it within this depth
   int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
-  int fairing_iterations = 1;       // rounds of smoothing the seam's points along their rays (fair_seam); 0: none
+  int fairing_iterations = 1;       // rounds of smoothing the seam's points along their rays (fair_seam), then the creases' corners (relax_creases); 0: neither
 };
 
 struct Seam {

@@ -39,7 +39,7 @@ struct ZipperOptions {
   // meshes (SeamOptions::smoothing_radius); 0: as measured; −1: auto
   // (ReconstructOptions::seam_smoothing_px(): 2 on unfiltered depth, 0 on filtered; here: 2).
   int seam_smoothing_px = -1;
-  int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays (SeamOptions::fairing_iterations); 0: none
+  int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays, then the creases' corners (SeamOptions::fairing_iterations); 0: neither
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)

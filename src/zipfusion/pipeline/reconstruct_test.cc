@@ -121,7 +121,8 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 // the unfiltered seam folded at 1 681 edges (57 after, for 7 231 seam triangles) and 25 of its
 // triangles faced away from every camera; filtered, at 54 edges (26 after, for 8 825). Moving the
 // points towards the other camera's layer and flipping creases out left 53 and 16; moving them to
-// halfway between the layers along the surface normal and fairing the seam, 29 and 3.
+// halfway between the layers along the surface normal and fairing the seam, 29 and 3; relaxing
+// the creases left along the layout's line of sight (clipping.cc, relax_creases), 25 and 0.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   Rig rig = *capture.ground_truth_rig();
@@ -137,7 +138,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
     TriangleMesh kept = result.mesh;
     kept.triangles.resize(kept.triangles.size() - seam_triangles);
     const int seam_folds = count_folded_edges(result.mesh) - count_folded_edges(kept);
-    EXPECT_LT(seam_folds, (bilateral ? 0.001 : 0.005) * seam_triangles) << "bilateral " << bilateral;
+    EXPECT_LT(seam_folds, (bilateral ? 0.00025 : 0.004) * seam_triangles) << "bilateral " << bilateral;
     int facing_no_camera = 0;
     for (size_t i = kept.triangles.size(); i < result.mesh.triangles.size(); ++i) {
       const Eigen::Vector3i& t = result.mesh.triangles[i];
