@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace zipfusion {
 namespace {
@@ -239,6 +240,10 @@ double signed_area2(const Eigen::Vector2f& p0, const Eigen::Vector2f& p1, const 
   return e1.x() * e2.y() - e1.y() * e2.x();
 }
 
+// Two output faces whose normals' cosine is below this meet at a crease sharper than 60°, a fold
+// (eval's count_folded_edges).
+constexpr float kCreaseCosine = -0.5f;
+
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
 // Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
 // by the layout alone; where the two meshes' points lie a few millimetres apart in depth, the
@@ -256,7 +261,6 @@ template <typename Output>
 void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const std::vector<Eigen::Vector2f>& flat,
                       float max_edge2, Output&& output, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
-  constexpr float kCreaseCosine = -0.5f;
   // The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is not
   // output.
   auto edge_cosine = [&](Delaunay::Face_handle f, int i) {
@@ -579,30 +583,38 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
 }
 
 // Rounds of relax_creases: on samba-4cam frames 0, 10, 20 and 30 the folded edges with a seam
-// face on either side went 23 → 8 filtered with one round, 6 with two or more (unfiltered 140 →
-// 115, 116 and 118 with four).
+// face on either side went 23 → 12 filtered with one round, 10 with two or more (unfiltered 140 →
+// 117, 118, and 119 with three or more).
 constexpr int kCreaseRelaxRounds = 2;
+
+// How far relax_creases may take a point from its pixel in its own camera, in pixels: if each
+// corner of a triangle of the pixel grid shifts this far, a corner comes at most twice as close to
+// the line through the other two, which lie at least 1/√2 pixel from it.
+constexpr float kMostPixelShift = 0.35f;
 
 // Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two
 // output faces still meet at a crease sharper than 60°, each corner of the two moves to the plane
 // through the mean of its triangulation neighbours (no farther than max_edge) along its normal,
 // the full umbrella step that fair_seam takes half of, by at most `most`. It moves along the
 // layout's own line of sight (SeamLayout::depth_direction), so its place in the layout stays and
-// no face turns over there, which a move along its camera's ray made of most of them (these
-// creases are often slivers, between points a few millimetres apart in depth across edges of a
-// few millimetres). That takes it off its pixel's ray, on a ring of four by about sin 45° of the
-// step (most steps on samba-4cam are under a millimetre, the largest 7 mm, about a pixel's
-// footprint); the kept triangles' folds did not change. A move that would change
-// whether a face around the point is output (a longer edge, a face over a kept triangle) is
-// halved, twice, then given up, so the seam keeps its faces. Each of `rounds` rounds looks again
-// only at the creases around the points that moved. `fixed`, normals as in fair_seam; faces' info
-// as in flip_out_creases, kept up to date.
-template <typename Output>
+// no face turns over there (along its camera's ray, as fair_seam moves, 211 of the 571 moves
+// tried on samba-4cam frames 0, 10, 20 and 30 would have turned one over: these creases are often
+// slivers, between points a few millimetres apart in depth across edges of a few millimetres).
+// That takes it off its pixel's ray, so a move may take the point no farther than
+// kMostPixelShift from its pixel in its own camera (`pixel_shift2(i, p)`: the squared distance
+// there of point p, in pixels). No other step moves a point across its ray, so the kept
+// triangles it is a corner of cannot turn over in their camera. A move beyond that, or one that
+// would change whether a face around the point is output (a longer edge, a face over a kept
+// triangle), is halved, twice, then given up, so the seam keeps its faces. The first of `rounds`
+// rounds takes the corners of every crease, each later one those of the creases around the
+// points that moved. `fixed`, normals as in fair_seam; faces' info as in flip_out_creases, kept
+// up to date. On those frames the seams' folds went 23 → 10 filtered (→ 6 with no bound on the
+// shift), 140 → 118 unfiltered (116).
+template <typename Output, typename PixelShift>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
-                   const SeamLayout& layout, float max_edge2, float most, int rounds, std::vector<Eigen::Vector3f>& positions,
-                   std::vector<Eigen::Vector2f>& flat, Output&& output) {
+                   PixelShift&& pixel_shift2, const SeamLayout& layout, float max_edge2, float most, int rounds,
+                   std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
-  constexpr float kCreaseCosine = -0.5f;
   auto is_seam_face = [](Delaunay::Face_handle f) {
     return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
   };
@@ -665,7 +677,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
       for (float part = 1.0f; part > 0.2f && !keeps; part *= 0.5f) {
         positions[i] = start + part * step * direction;
         flat[i] = layout(positions[i]);
-        keeps = true;
+        keeps = pixel_shift2(i, positions[i]) <= kMostPixelShift * kMostPixelShift;
         for (size_t k = 0; k < faces && keeps; ++k) {
           const double area = area2(around[k]);
           const Delaunay::Face_handle g = around[k];
@@ -848,7 +860,15 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
   flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
   if (options.fairing_iterations > 0) {
-    relax_creases(triangulation, normals, taken.shared, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds, positions, flat, output);
+    auto pixel_shift2 = [&](int i, const Eigen::Vector3f& p) {
+      const MeshView& own = seam.vertices[i].camera == a.camera ? a : b;
+      const int pixel = seam.vertices[i].pixel;
+      const ViewPoint q = project_into(own, p);
+      const float du = q.x - static_cast<float>(pixel % own.mesh->width), dv = q.y - static_cast<float>(pixel / own.mesh->width);
+      return q.in_camera.z() > 0 ? du * du + dv * dv : std::numeric_limits<float>::infinity();
+    };
+    relax_creases(triangulation, normals, taken.shared, pixel_shift2, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
+                  positions, flat, output);
   }
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
