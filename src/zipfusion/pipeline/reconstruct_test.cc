@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <utility>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/mesh_distance.h"
@@ -112,6 +113,14 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
   EXPECT_LT(result.mesh.triangle_count(), every * 11 / 10);
 }
 
+// A samba-4cam frame set and the rig with its ground-truth poses (and the capture's volume).
+std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
+  const Capture capture = Capture::open(kSharedData / "samba-4cam");
+  Rig rig = *capture.ground_truth_rig();
+  rig.volume = capture.rig().volume;
+  return {std::move(rig), capture.load_frame(frame)};
+}
+
 // The seams fold no more than a few of their triangles over their neighbours (count_folded_edges:
 // the folds of the zippered mesh less those of its kept triangles alone, whose vertices the seams
 // may have moved along their rays: folds among kept triangles are bounded against the separate
@@ -124,10 +133,7 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
 // halfway between the layers along the surface normal and fairing the seam, 29 and 3; relaxing
 // the creases left along the layout's line of sight (clipping.cc, relax_creases), 26 and 0.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
-  const Capture capture = Capture::open(kSharedData / "samba-4cam");
-  Rig rig = *capture.ground_truth_rig();
-  rig.volume = capture.rig().volume;
-  const FrameSet frames = capture.load_frame(0);
+  const auto [rig, frames] = samba_frame_with_true_poses(0);
   for (const bool bilateral : {false, true}) {
     FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kZipper, .bilateral = bilateral});
     const FrameResult result = reconstructor.reconstruct(frames);
@@ -159,10 +165,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
 // order of their CGAL handles' addresses, which differ between runs, 21–29 of frame 30's
 // positions differed here.
 TEST(Reconstruct, ZipperMeshIsTheSameOnAnyNumberOfThreads) {
-  const Capture capture = Capture::open(kSharedData / "samba-4cam");
-  Rig rig = *capture.ground_truth_rig();
-  rig.volume = capture.rig().volume;
-  const FrameSet frames = capture.load_frame(30);
+  const auto [rig, frames] = samba_frame_with_true_poses(30);
   for (const bool bilateral : {false, true}) {
     std::vector<TriangleMesh> meshes;
     for (const int threads : {1, 2, 3}) {
