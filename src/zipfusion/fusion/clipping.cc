@@ -587,9 +587,10 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
 // 117, 118, and 119 with three or more).
 constexpr int kCreaseRelaxRounds = 2;
 
-// How far relax_creases may take a point from its pixel in its own camera, in pixels: if each
-// corner of a triangle of the pixel grid shifts this far, a corner comes at most twice as close to
-// the line through the other two, which lie at least 1/√2 pixel from it.
+// How far relax_creases may take a point from its pixel in its own camera, in pixels. To turn
+// over, a triangle of the pixel grid must pass through a degenerate state, one corner on the
+// segment between the other two; each corner lies at least 1/√2 pixel from that segment and, with
+// all three shifted this far at most, comes at most twice this (0.70 pixel) closer to it.
 constexpr float kMostPixelShift = 0.35f;
 
 // Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two

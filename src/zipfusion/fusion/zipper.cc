@@ -453,7 +453,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     assembled = Clock::now();
   };
   // Colours are sampled at the measured depth: a seam vertex moved along its ray to its surface's
-  // mean depth (millimetres) projects into the colour camera a small fraction of a pixel away.
+  // mean depth (millimetres), or at most 0.35 depth pixel off it by the crease relaxation, projects
+  // into the colour camera a small fraction of a pixel away.
   auto color_camera = [&](int i) {
     const int c = active[i];
     const ZipperScratch::Camera& s = scratch.cameras[c];

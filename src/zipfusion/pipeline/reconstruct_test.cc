@@ -123,8 +123,9 @@ std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
 
 // The seams fold no more than a few of their triangles over their neighbours (count_folded_edges:
 // the folds of the zippered mesh less those of its kept triangles alone, whose vertices the seams
-// may have moved along their rays: folds among kept triangles are bounded against the separate
-// meshes by zipper_quality_test), on samba-4cam frame 0 with the true poses, and every seam
+// may have moved along their rays, and by at most 0.35 pixel off them (relax_creases): folds among
+// kept triangles are bounded against the separate meshes by zipper_quality_test), on samba-4cam
+// frame 0 with the true poses, and every seam
 // triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When
 // the seam points were laid out at their surface's mean depth but output at their measured depth,
 // the unfiltered seam folded at 1 681 edges (57 after, for 7 231 seam triangles) and 25 of its
@@ -173,11 +174,17 @@ TEST(Reconstruct, ZipperMeshIsTheSameOnAnyNumberOfThreads) {
       meshes.push_back(reconstructor.reconstruct(frames).mesh);
     }
     for (size_t k = 1; k < meshes.size(); ++k) {
-      ASSERT_EQ(meshes[k].triangles, meshes[0].triangles) << "bilateral " << bilateral;
-      ASSERT_EQ(meshes[k].positions.size(), meshes[0].positions.size()) << "bilateral " << bilateral;
-      int differ = 0;
-      for (size_t i = 0; i < meshes[0].positions.size(); ++i) differ += meshes[k].positions[i] != meshes[0].positions[i];
-      EXPECT_EQ(differ, 0) << "bilateral " << bilateral << ", " << k + 1 << " threads";
+      const TriangleMesh &mesh = meshes[k], &first = meshes[0];
+      if (mesh.triangles.size() != first.triangles.size() || mesh.positions.size() != first.positions.size()) {
+        ADD_FAILURE() << "bilateral " << bilateral << ", " << k + 1 << " threads: " << mesh.triangles.size() << " triangles, "
+                      << mesh.positions.size() << " vertices against " << first.triangles.size() << ", " << first.positions.size();
+        continue;
+      }
+      int triangles_differ = 0, positions_differ = 0;
+      for (size_t i = 0; i < first.triangles.size(); ++i) triangles_differ += mesh.triangles[i] != first.triangles[i];
+      for (size_t i = 0; i < first.positions.size(); ++i) positions_differ += mesh.positions[i] != first.positions[i];
+      EXPECT_EQ(triangles_differ, 0) << "bilateral " << bilateral << ", " << k + 1 << " threads";
+      EXPECT_EQ(positions_differ, 0) << "bilateral " << bilateral << ", " << k + 1 << " threads";
     }
   }
 }
