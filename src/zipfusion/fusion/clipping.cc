@@ -240,9 +240,22 @@ double signed_area2(const Eigen::Vector2f& p0, const Eigen::Vector2f& p1, const 
   return e1.x() * e2.y() - e1.y() * e2.x();
 }
 
+// Whether two signed areas (signed_area2) have the same sign, neither zero: a face keeps its
+// orientation in the layout.
+bool same_orientation(double before, double after) { return (before > 0 && after > 0) || (before < 0 && after < 0); }
+
 // Two output faces whose normals' cosine is below this meet at a crease sharper than 60°, a fold
 // (eval's count_folded_edges).
 constexpr float kCreaseCosine = -0.5f;
+
+// The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is
+// infinite or not output. The faces' info must be set (set_face_info).
+float edge_cosine(const Delaunay& triangulation, Delaunay::Face_handle f, int i) {
+  const Delaunay::Face_handle g = f->neighbor(i);
+  return !triangulation.is_infinite(f) && !triangulation.is_infinite(g) && f->info().output && g->info().output
+             ? f->info().normal.dot(g->info().normal)
+             : 1.0f;
+}
 
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
 // Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
@@ -261,22 +274,15 @@ template <typename Output>
 void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const std::vector<Eigen::Vector2f>& flat,
                       float max_edge2, Output&& output, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
-  // The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is not
-  // output.
-  auto edge_cosine = [&](Delaunay::Face_handle f, int i) {
-    const Delaunay::Face_handle g = f->neighbor(i);
-    return !triangulation.is_infinite(f) && !triangulation.is_infinite(g) && f->info().output && g->info().output
-               ? f->info().normal.dot(g->info().normal)
-               : 1.0f;
-  };
   // The sharpest crease over edge (f, i) and the four outer edges of its quadrilateral.
   auto sharpest = [&](Delaunay::Face_handle f, int i) {
     const Delaunay::Face_handle g = f->neighbor(i);
     const int j = triangulation.mirror_index(f, i);
-    return std::min({edge_cosine(f, i), edge_cosine(f, Delaunay::cw(i)), edge_cosine(f, Delaunay::ccw(i)), edge_cosine(g, Delaunay::cw(j)),
-                     edge_cosine(g, Delaunay::ccw(j))});
+    return std::min({edge_cosine(triangulation, f, i), edge_cosine(triangulation, f, Delaunay::cw(i)),
+                     edge_cosine(triangulation, f, Delaunay::ccw(i)), edge_cosine(triangulation, g, Delaunay::cw(j)),
+                     edge_cosine(triangulation, g, Delaunay::ccw(j))});
   };
-  auto creased = [&](Delaunay::Face_handle f, int i) { return !f->is_constrained(i) && edge_cosine(f, i) < kCreaseCosine; };
+  auto creased = [&](Delaunay::Face_handle f, int i) { return !f->is_constrained(i) && edge_cosine(triangulation, f, i) < kCreaseCosine; };
   auto edge_vertices = [](Delaunay::Face_handle f, int i) { return std::pair{f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))}; };
   candidates.clear();
   for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) {
@@ -295,7 +301,7 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
     // Both faces are output, so every corner is a seam vertex.
     const Eigen::Vector2f &flat_w = flat[w->info().index], &flat_x = flat[x->info().index];
     const double side_u = signed_area2(flat_w, flat_x, flat[u->info().index]), side_v = signed_area2(flat_w, flat_x, flat[v->info().index]);
-    if (!((side_u > 0 && side_v < 0) || (side_u < 0 && side_v > 0))) continue;
+    if (!same_orientation(side_u, -side_v)) continue;
     if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
     const float before = sharpest(f, i);
     triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
@@ -572,7 +578,7 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
       for (const auto& [i0, i1, i2] : s.faces) {
         if (!(s.moved[i0] | s.moved[i1] | s.moved[i2])) continue;
         const double before = signed_area2(flat[i0], flat[i1], flat[i2]), after = signed_area2(s.flat_next[i0], s.flat_next[i1], s.flat_next[i2]);
-        if ((before > 0 && after > 0) || (before < 0 && after < 0)) continue;
+        if (same_orientation(before, after)) continue;
         for (const int i : {i0, i1, i2}) s.next[i] = positions[i], s.flat_next[i] = flat[i], s.moved[i] = 0;
         undone = true;
       }
@@ -622,11 +628,9 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
   std::vector<Delaunay::Vertex_handle> corners;
   // Queues the four corners of each creased edge of face f.
   auto queue_creases_of = [&](Delaunay::Face_handle f) {
-    if (triangulation.is_infinite(f) || !f->info().output) return;
     for (int i = 0; i < 3; ++i) {
-      const Delaunay::Face_handle g = f->neighbor(i);
-      if (triangulation.is_infinite(g) || !g->info().output || f->info().normal.dot(g->info().normal) >= kCreaseCosine) continue;
-      corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), g->vertex(triangulation.mirror_index(f, i))});
+      if (edge_cosine(triangulation, f, i) >= kCreaseCosine) continue;
+      corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), f->neighbor(i)->vertex(triangulation.mirror_index(f, i))});
     }
   };
   for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) queue_creases_of(f);
@@ -682,7 +686,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
         for (size_t k = 0; k < faces && keeps; ++k) {
           const double area = area2(around[k]);
           const Delaunay::Face_handle g = around[k];
-          keeps = ((area_before[k] > 0 && area > 0) || (area_before[k] < 0 && area < 0)) &&
+          keeps = same_orientation(area_before[k], area) &&
                   output(g->vertex(0)->info().index, g->vertex(1)->info().index, g->vertex(2)->info().index) == output_before[k];
         }
       }
