@@ -170,9 +170,10 @@ TEST(ZipperQuality, NoiseFreeFourCameras) {
   EXPECT_GE(q.zipper.completeness, 0.95);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
-  // The seams add hardly a fold to those of the cameras' own meshes (15 at silhouettes): 13 with
-  // the seam's points moved halfway between the layers and faired (18 before, 19 before the
-  // consensus and the crease flips); 363 when output at their measured depth.
+  // The seams add hardly a fold to those of the cameras' own meshes (15 at silhouettes): 12 with
+  // the seam's points moved halfway between the layers, faired and the creases left relaxed (13
+  // before the relaxation, 18 before the fairing, 19 before the consensus and the crease flips);
+  // 363 when output at their measured depth.
   EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges + 5);
   EXPECT_LE(q.zipper.accuracy_mean_mm, q.separate.accuracy_mean_mm + 0.2);
   EXPECT_EQ(q.zipper.min_cameras_used, 4);
@@ -192,10 +193,10 @@ void expect_noisy_ring_targets(int cameras) {
   EXPECT_LE(q.zipper_area_m2, q.separate_area_m2 - 0.65 * q.redundant_area_m2);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
-  // Folds: the zipper has fewer than the separate meshes (6 cameras: 34 against 72, 50 before the
-  // seam's points were moved halfway between the layers and faired, 104 before the consensus and
-  // the crease flips, 172 when they were output at their measured depth; 3 cameras: 18 against
-  // 37, 28 and 31 before).
+  // Folds: the zipper has fewer than the separate meshes (6 cameras: 28 against 72, 34 before the
+  // creases left were relaxed, 50 before the seam's points were moved halfway between the layers
+  // and faired, 104 before the consensus and the crease flips, 172 when they were output at their
+  // measured depth; 3 cameras: 18 against 37, 28 and 31 before).
   EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);
   if (cameras >= 4) {
     EXPECT_GE(q.zipper.completeness, 0.95);
@@ -239,7 +240,7 @@ TEST(ZipperQuality, DeadCameraIsLeftOut) {
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
   EXPECT_EQ(q.zipper.min_cameras_used, 3);
   EXPECT_EQ(q.zipper.max_cameras_used, 3);
-  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);  // 17 against 30 (27 before the seam was faired)
+  EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);  // 14 against 30 (17 before the creases were relaxed, 27 before the seam was faired)
   // Covering the rest: as much of the observed truth as the separate meshes of the three cameras.
   EXPECT_GE(q.zipper.completeness, q.separate.completeness - 0.01);
 }
