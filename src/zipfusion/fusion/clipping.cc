@@ -593,12 +593,6 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
 // 117, 118, and 119 with three or more).
 constexpr int kCreaseRelaxRounds = 2;
 
-// How far relax_creases may take a point from its pixel in its own camera, in pixels. To turn
-// over, a triangle of the pixel grid must pass through a degenerate state, one corner on the
-// segment between the other two; each corner lies at least 1/√2 pixel from that segment and, with
-// all three shifted this far at most, comes at most twice this (0.70 pixel) closer to it.
-constexpr float kMostPixelShift = 0.35f;
-
 // Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two
 // output faces still meet at a crease sharper than 60°, each corner of the two moves to the plane
 // through the mean of its triangulation neighbours (no farther than max_edge) along its normal,
@@ -607,19 +601,18 @@ constexpr float kMostPixelShift = 0.35f;
 // no face turns over there (along its camera's ray, as fair_seam moves, 211 of the 571 moves
 // tried on samba-4cam frames 0, 10, 20 and 30 would have turned one over: these creases are often
 // slivers, between points a few millimetres apart in depth across edges of a few millimetres).
-// That takes it off its pixel's ray, so a move may take the point no farther than
-// kMostPixelShift from its pixel in its own camera (`pixel_shift2(i, p)`: the squared distance
-// there of point p, in pixels). No other step moves a point across its ray, so the kept
-// triangles it is a corner of cannot turn over in their camera. A move beyond that, or one that
-// would change whether a face around the point is output (a longer edge, a face over a kept
-// triangle), is halved, twice, then given up, so the seam keeps its faces. The first of `rounds`
-// rounds takes the corners of every crease, each later one those of the creases around the
-// points that moved. `fixed`, normals as in fair_seam; faces' info as in flip_out_creases, kept
-// up to date. On those frames the seams' folds went 23 → 10 filtered (→ 6 with no bound on the
-// shift), 140 → 118 unfiltered (116).
-template <typename Output, typename PixelShift>
+// That takes it off its pixel's ray: `kept_upright(i, p)` says whether point i at p leaves the
+// kept triangles around it facing their camera (kept_triangles_upright). A move it refuses, or
+// one that would change whether a face around the point is output (a longer edge, a face over a
+// kept triangle), is halved, twice, then given up, so the seam keeps its faces. The first of
+// `rounds` rounds takes the corners of every crease, each later one those of the creases around
+// the points that moved. `fixed`, normals as in fair_seam; faces' info as in flip_out_creases,
+// kept up to date. On those frames the seams' folds went 23 → 6 filtered, 140 → 114 unfiltered
+// (with every point held within 0.35 pixel of its pixel, as kept_triangles_upright holds only
+// those beside another seam's points: 10 and 118).
+template <typename Output, typename KeptUpright>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
-                   PixelShift&& pixel_shift2, const SeamLayout& layout, float max_edge2, float most, int rounds,
+                   KeptUpright&& kept_upright, const SeamLayout& layout, float max_edge2, float most, int rounds,
                    std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
   auto is_seam_face = [](Delaunay::Face_handle f) {
@@ -682,7 +675,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
       for (float part = 1.0f; part > 0.2f && !keeps; part *= 0.5f) {
         positions[i] = start + part * step * direction;
         flat[i] = layout(positions[i]);
-        keeps = pixel_shift2(i, positions[i]) <= kMostPixelShift * kMostPixelShift;
+        keeps = kept_upright(i, positions[i]);
         for (size_t k = 0; k < faces && keeps; ++k) {
           const double area = area2(around[k]);
           const Delaunay::Face_handle g = around[k];
@@ -707,6 +700,55 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
 }
 
 }  // namespace
+
+bool kept_triangles_upright(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
+                            const std::vector<Eigen::Vector3f>& positions) {
+  const DepthMesh& mesh = *view.mesh;
+  const int width = mesh.width, u = pixel % width, v = pixel / width;
+  const ViewPoint moved = project_into(view, p);
+  if (!(moved.in_camera.z() > 0)) return false;
+  auto image_point = [&](const Eigen::Vector3f& q) {
+    const ViewPoint seen = project_into(view, q);
+    return Eigen::Vector2f(seen.x, seen.y);
+  };
+  auto grid_point = [&](int q) { return Eigen::Vector2f(static_cast<float>(q % width), static_cast<float>(q / width)); };
+  bool bounded = map.seam == nullptr;
+  for (int cell_v = std::max(0, v - 1); cell_v <= std::min(v, mesh.height - 2) && map.seam != nullptr; ++cell_v) {
+    for (int cell_u = std::max(0, u - 1); cell_u <= std::min(u, width - 2); ++cell_u) {
+      const int cell = cell_v * width + cell_u;
+      for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+        if (!(mesh.triangles[cell] & bit)) continue;
+        int corners[3];
+        triangle_pixels(cell, width, bit, corners);
+        if (corners[0] != pixel && corners[1] != pixel && corners[2] != pixel) continue;
+        Eigen::Vector2f grid[3], image[3];
+        bool foreign = false;
+        for (int k = 0; k < 3 && !foreign; ++k) {
+          const int q = corners[k];
+          grid[k] = grid_point(q);
+          const std::uint16_t seam = map.seam[q];
+          if (q == pixel) {
+            image[k] = Eigen::Vector2f(moved.x, moved.y);
+          } else if (seam == SeamPixelMap::kNoSeam) {
+            image[k] = grid[k];
+          } else if (seam == own) {
+            image[k] = image_point(positions[map.vertex[q]]);
+          } else {
+            foreign = true;
+          }
+        }
+        if (foreign) {
+          bounded = true;
+        } else if (!same_orientation(signed_area2(grid[0], grid[1], grid[2]), signed_area2(image[0], image[1], image[2]))) {
+          return false;
+        }
+      }
+    }
+  }
+  const float du = moved.x - static_cast<float>(u), dv = moved.y - static_cast<float>(v);
+  const float most = bounded ? kMostPixelShiftBesideOtherSeam : kMostPixelShift;
+  return du * du + dv * dv <= most * most;
+}
 
 bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float tolerance, const KeptAt& kept) {
   if (p.cell < 0) return false;
@@ -749,7 +791,7 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
 }
 
 void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, TakenSeam& taken) {
+                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken) {
   Seam& seam = taken.seam;
   const std::vector<std::pair<int, int>>& constraints = taken.constraints;
   if (seam.vertices.size() < 3) return;
@@ -865,14 +907,12 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
   flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
   if (options.fairing_iterations > 0) {
-    auto pixel_shift2 = [&](int i, const Eigen::Vector3f& p) {
-      const MeshView& own = seam.vertices[i].camera == a.camera ? a : b;
-      const int pixel = seam.vertices[i].pixel;
-      const ViewPoint q = project_into(own, p);
-      const float du = q.x - static_cast<float>(pixel % own.mesh->width), dv = q.y - static_cast<float>(pixel / own.mesh->width);
-      return q.in_camera.z() > 0 ? du * du + dv * dv : std::numeric_limits<float>::infinity();
+    // Does point i at p leave the kept triangles around its pixel facing its camera?
+    auto kept_upright = [&](int i, const Eigen::Vector3f& p) {
+      const bool in_a = seam.vertices[i].camera == a.camera;
+      return kept_triangles_upright(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions);
     };
-    relax_creases(triangulation, normals, taken.shared, pixel_shift2, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
+    relax_creases(triangulation, normals, taken.shared, kept_upright, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
                   positions, flat, output);
   }
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {

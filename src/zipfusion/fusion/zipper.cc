@@ -227,19 +227,31 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       for (int id : taken[pair_index].taken_b) scratch.cameras[b].taken_round[id] = static_cast<std::uint8_t>(r + 1);
     }, options.num_threads);
   }
-  // Pixels that are vertices of more than one seam (where three cameras' seams meet): each seam
-  // would move them towards its other camera's surface, so they keep their own place.
-  for (int c : active) scratch.cameras[c].seams_at_pixel.resize(cameras[c].mesh->triangles.size(), 0);
-  auto seams_at = [&](const PixelVertex& v) -> std::uint8_t& { return scratch.cameras[v.camera].seams_at_pixel[v.pixel]; };
-  for (const TakenSeam& seam : taken) {
-    for (const PixelVertex& v : seam.seam.vertices) seams_at(v) = static_cast<std::uint8_t>(std::min(2, seams_at(v) + 1));
+  // Which seam each pixel is a vertex of (SeamPixelMap), kept until every seam is stitched. Pixels
+  // that are vertices of more than one seam (where three cameras' seams meet) keep their own
+  // place: each seam would move them towards its other camera's surface.
+  // Seams are numbered from 1 in 16 bits.
+  if (taken.size() >= SeamPixelMap::kManySeams - 1) throw InvalidInput("zipper: more than 65 533 overlapping camera pairs");
+  for (int c : active) {
+    scratch.cameras[c].seam_at_pixel.resize(cameras[c].mesh->triangles.size(), SeamPixelMap::kNoSeam);
+    scratch.cameras[c].seam_vertex_at_pixel.resize(cameras[c].mesh->triangles.size());
+  }
+  auto seam_at = [&](const PixelVertex& v) -> std::uint16_t& { return scratch.cameras[v.camera].seam_at_pixel[v.pixel]; };
+  for (size_t k = 0; k < taken.size(); ++k) {
+    const std::vector<PixelVertex>& vertices = taken[k].seam.vertices;
+    for (size_t i = 0; i < vertices.size(); ++i) {
+      std::uint16_t& seam = seam_at(vertices[i]);
+      if (seam != SeamPixelMap::kNoSeam) {
+        seam = SeamPixelMap::kManySeams;
+        continue;
+      }
+      seam = static_cast<std::uint16_t>(k + 1);
+      scratch.cameras[vertices[i].camera].seam_vertex_at_pixel[vertices[i].pixel] = static_cast<int>(i);
+    }
   }
   for (TakenSeam& seam : taken) {
     seam.shared.resize(seam.seam.vertices.size());
-    for (size_t k = 0; k < seam.seam.vertices.size(); ++k) seam.shared[k] = seams_at(seam.seam.vertices[k]) > 1;
-  }
-  for (const TakenSeam& seam : taken) {
-    for (const PixelVertex& v : seam.seam.vertices) seams_at(v) = 0;
+    for (size_t k = 0; k < seam.seam.vertices.size(); ++k) seam.shared[k] = seam_at(seam.seam.vertices[k]) == SeamPixelMap::kManySeams;
   }
   const Clock::time_point taken_at = Clock::now();
 
@@ -324,10 +336,11 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   std::vector<Clock::time_point> stitched_at(taken.size(), taken_at);
   auto stitch = [&](int i) {
     const auto [a, b] = result.pairs[i];
+    auto pixel_map = [&](int c) { return SeamPixelMap{scratch.cameras[c].seam_at_pixel.data(), scratch.cameras[c].seam_vertex_at_pixel.data()}; };
     stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                 cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
                 KeptAt{scratch.cameras[a].taken_round.data(), round_of_pair[i]}, KeptAt{scratch.cameras[b].taken_round.data(), round_of_pair[i]},
-                taken[i]);
+                SeamPixels{pixel_map(a), pixel_map(b), static_cast<std::uint16_t>(i + 1)}, taken[i]);
     stitched_at[i] = Clock::now();
   };
   // One list the threads take tasks from in turn: the seams, longest first, then each camera's
@@ -352,6 +365,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   std::vector<Seam> seams(taken.size());
   for (size_t i = 0; i < taken.size(); ++i) {
     const auto [a, b] = result.pairs[i];
+    for (const PixelVertex& v : taken[i].seam.vertices) seam_at(v) = SeamPixelMap::kNoSeam;
     for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
     for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
     seams[i] = std::move(taken[i].seam);
@@ -453,8 +467,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     assembled = Clock::now();
   };
   // Colours are sampled at the measured depth: a seam vertex moved along its ray to its surface's
-  // mean depth (millimetres), or at most 0.35 depth pixel off it by the crease relaxation, projects
-  // into the colour camera a small fraction of a pixel away.
+  // mean depth (millimetres) projects into the colour camera a small fraction of a pixel away; one
+  // the crease relaxation took off its ray is at most kMostPixelShift (1.5) depth pixels away.
   auto color_camera = [&](int i) {
     const int c = active[i];
     const ZipperScratch::Camera& s = scratch.cameras[c];

@@ -89,7 +89,8 @@ struct ZipperScratch {
     FrbrScratch frbr;
     SeamScratch seam;
     std::vector<std::uint8_t> taken_round;  // clipping: per triangle id, the 1-based round of the seam that took it, else 0
-    std::vector<std::uint8_t> seams_at_pixel;  // clipping: per pixel, how many seams have it as a vertex (up to 2), else 0
+    std::vector<std::uint16_t> seam_at_pixel;  // clipping: per pixel, the seam it is a vertex of (SeamPixelMap::seam)
+    std::vector<int> seam_vertex_at_pixel;     // clipping: per pixel of one seam, its index among the seam's vertices
     std::vector<std::uint8_t> used;       // assembly: per pixel, whether a kept or seam triangle uses it
     std::vector<int> vertex_of_pixel;     // assembly: per used pixel, its index among the camera's vertices
   };

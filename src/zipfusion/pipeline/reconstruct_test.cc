@@ -123,7 +123,7 @@ std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
 
 // The seams fold no more than a few of their triangles over their neighbours (count_folded_edges:
 // the folds of the zippered mesh less those of its kept triangles alone, whose vertices the seams
-// may have moved along their rays, and by at most 0.35 pixel off them (relax_creases): folds among
+// may have moved along their rays, and by at most 1.5 pixels off them (relax_creases): folds among
 // kept triangles are bounded against the separate meshes by zipper_quality_test), on samba-4cam
 // frame 0 with the true poses, and every seam
 // triangle faces a camera (each faces its seam's virtual camera, halfway between its two). When
@@ -132,7 +132,9 @@ std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
 // triangles faced away from every camera; filtered, at 54 edges (26 after, for 8 825). Moving the
 // points towards the other camera's layer and flipping creases out left 53 and 16; moving them to
 // halfway between the layers along the surface normal and fairing the seam, 29 and 3; relaxing
-// the creases left along the layout's line of sight (clipping.cc, relax_creases), 26 and 0.
+// the creases left along the layout's line of sight (clipping.cc, relax_creases), 26 and 0; and
+// letting the points beside no other seam's go as far as their kept triangles stay upright, 25
+// and 0.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const auto [rig, frames] = samba_frame_with_true_poses(0);
   for (const bool bilateral : {false, true}) {
