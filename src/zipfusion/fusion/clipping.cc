@@ -589,9 +589,10 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
 }
 
 // Rounds of relax_creases: on samba-4cam frames 0, 10, 20 and 30 the folded edges with a seam
-// face on either side went 23 → 12 filtered with one round, 10 with two or more (unfiltered 140 →
-// 117, 118, and 119 with three or more).
-constexpr int kCreaseRelaxRounds = 2;
+// face on either side went 23 → 10 filtered with one round, 9 with two, 8 with three or four
+// (unfiltered 140 → 118, 116, 116, 117); on frames 0–39 filtered, the zippered meshes' seam folds
+// (a seam face on either side) were 85 with two rounds, 79 with three.
+constexpr int kCreaseRelaxRounds = 3;
 
 // Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two
 // output faces still meet at a crease sharper than 60°, each corner of the two moves to the plane
@@ -601,18 +602,18 @@ constexpr int kCreaseRelaxRounds = 2;
 // no face turns over there (along its camera's ray, as fair_seam moves, 211 of the 571 moves
 // tried on samba-4cam frames 0, 10, 20 and 30 would have turned one over: these creases are often
 // slivers, between points a few millimetres apart in depth across edges of a few millimetres).
-// That takes it off its pixel's ray: `kept_upright(i, p)` says whether point i at p leaves the
-// kept triangles around it facing their camera (kept_triangles_upright). A move it refuses, or
+// That takes it off its pixel's ray: `grid_unfolded(i, p)` says whether point i at p leaves the
+// pixel grid around it unfolded in its camera (keeps_pixel_grid_unfolded). A move it refuses, or
 // one that would change whether a face around the point is output (a longer edge, a face over a
 // kept triangle), is halved, twice, then given up, so the seam keeps its faces. The first of
 // `rounds` rounds takes the corners of every crease, each later one those of the creases around
 // the points that moved. `fixed`, normals as in fair_seam; faces' info as in flip_out_creases,
-// kept up to date. On those frames the seams' folds went 23 → 6 filtered, 140 → 114 unfiltered
-// (with every point held within 0.35 pixel of its pixel, as kept_triangles_upright holds only
-// those beside another seam's points: 10 and 118).
-template <typename Output, typename KeptUpright>
+// kept up to date. On those frames the seams' folds went 23 → 8 filtered, 140 → 116 unfiltered
+// (10 and 118 with every point held within 0.35 pixel of its pixel, as keeps_pixel_grid_unfolded
+// holds only those beside another seam's points).
+template <typename Output, typename GridUnfolded>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
-                   KeptUpright&& kept_upright, const SeamLayout& layout, float max_edge2, float most, int rounds,
+                   GridUnfolded&& grid_unfolded, const SeamLayout& layout, float max_edge2, float most, int rounds,
                    std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
   auto is_seam_face = [](Delaunay::Face_handle f) {
@@ -675,7 +676,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
       for (float part = 1.0f; part > 0.2f && !keeps; part *= 0.5f) {
         positions[i] = start + part * step * direction;
         flat[i] = layout(positions[i]);
-        keeps = kept_upright(i, positions[i]);
+        keeps = grid_unfolded(i, positions[i]);
         for (size_t k = 0; k < faces && keeps; ++k) {
           const double area = area2(around[k]);
           const Delaunay::Face_handle g = around[k];
@@ -701,44 +702,42 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
 
 }  // namespace
 
-bool kept_triangles_upright(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
-                            const std::vector<Eigen::Vector3f>& positions) {
+bool keeps_pixel_grid_unfolded(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
+                               const Eigen::Vector3f* positions) {
   const DepthMesh& mesh = *view.mesh;
   const int width = mesh.width, u = pixel % width, v = pixel / width;
   const ViewPoint moved = project_into(view, p);
   if (!(moved.in_camera.z() > 0)) return false;
-  auto image_point = [&](const Eigen::Vector3f& q) {
-    const ViewPoint seen = project_into(view, q);
-    return Eigen::Vector2f(seen.x, seen.y);
-  };
   auto grid_point = [&](int q) { return Eigen::Vector2f(static_cast<float>(q % width), static_cast<float>(q / width)); };
-  bool bounded = map.seam == nullptr;
+  // Every triangle of the pixel grid with the pixel as a corner, kept or not: while none turns
+  // over, the point stays inside the polygon of its neighbours, so it cannot move over a kept
+  // triangle it is not a corner of either.
+  bool beside_other_seam = map.seam == nullptr;
   for (int cell_v = std::max(0, v - 1); cell_v <= std::min(v, mesh.height - 2) && map.seam != nullptr; ++cell_v) {
     for (int cell_u = std::max(0, u - 1); cell_u <= std::min(u, width - 2); ++cell_u) {
-      const int cell = cell_v * width + cell_u;
       for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-        if (!(mesh.triangles[cell] & bit)) continue;
         int corners[3];
-        triangle_pixels(cell, width, bit, corners);
+        triangle_pixels(cell_v * width + cell_u, width, bit, corners);
         if (corners[0] != pixel && corners[1] != pixel && corners[2] != pixel) continue;
         Eigen::Vector2f grid[3], image[3];
-        bool foreign = false;
-        for (int k = 0; k < 3 && !foreign; ++k) {
+        bool other_seam = false;
+        for (int k = 0; k < 3 && !other_seam; ++k) {
           const int q = corners[k];
           grid[k] = grid_point(q);
           const std::uint16_t seam = map.seam[q];
           if (q == pixel) {
             image[k] = Eigen::Vector2f(moved.x, moved.y);
-          } else if (seam == SeamPixelMap::kNoSeam) {
-            image[k] = grid[k];
+          } else if (seam == SeamPixelMap::kNoSeam || seam == SeamPixelMap::kManySeams) {
+            image[k] = grid[k];  // on its pixel's ray: a point of several seams stays there
           } else if (seam == own) {
-            image[k] = image_point(positions[map.vertex[q]]);
+            const ViewPoint seen = project_into(view, positions[map.vertex[q]]);
+            image[k] = Eigen::Vector2f(seen.x, seen.y);
           } else {
-            foreign = true;
+            other_seam = true;
           }
         }
-        if (foreign) {
-          bounded = true;
+        if (other_seam) {
+          beside_other_seam = true;
         } else if (!same_orientation(signed_area2(grid[0], grid[1], grid[2]), signed_area2(image[0], image[1], image[2]))) {
           return false;
         }
@@ -746,7 +745,7 @@ bool kept_triangles_upright(const MeshView& view, const SeamPixelMap& map, std::
     }
   }
   const float du = moved.x - static_cast<float>(u), dv = moved.y - static_cast<float>(v);
-  const float most = bounded ? kMostPixelShiftBesideOtherSeam : kMostPixelShift;
+  const float most = beside_other_seam ? kMostPixelShiftBesideOtherSeam : kMostPixelShift;
   return du * du + dv * dv <= most * most;
 }
 
@@ -907,12 +906,12 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
   flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
   if (options.fairing_iterations > 0) {
-    // Does point i at p leave the kept triangles around its pixel facing its camera?
-    auto kept_upright = [&](int i, const Eigen::Vector3f& p) {
+    // Does point i at p leave the pixel grid around it unfolded in its camera?
+    auto grid_unfolded = [&](int i, const Eigen::Vector3f& p) {
       const bool in_a = seam.vertices[i].camera == a.camera;
-      return kept_triangles_upright(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions);
+      return keeps_pixel_grid_unfolded(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions.data());
     };
-    relax_creases(triangulation, normals, taken.shared, kept_upright, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
+    relax_creases(triangulation, normals, taken.shared, grid_unfolded, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
                   positions, flat, output);
   }
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {

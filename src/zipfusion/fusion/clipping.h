@@ -23,8 +23,8 @@
 //! along their rays (SeamOptions::fairing_iterations) without turning a face over in the layout,
 //! and a crease left sharper than 60° is flipped out where the other diagonal of its quadrilateral
 //! is smoother; the corners of any crease still left move towards their neighbours along the
-//! layout's line of sight, off their pixel's ray but not so far that a kept triangle around them
-//! turns over in their own camera (kept_triangles_upright). A few creases remain (docs/design.md).
+//! layout's line of sight, off their pixel's ray but not so far that the pixel grid around them
+//! folds in their own camera (keeps_pixel_grid_unfolded). A few creases remain (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -118,8 +118,10 @@ bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float toleran
 
 //! A camera's pixels that are vertices of the seams being stitched: per pixel, kNoSeam, the
 //! number of the one seam it is a vertex of, or kManySeams; and where it is one seam's, its index
-//! among that seam's vertices. Stitching reads it to see whether the kept triangles around a
-//! point it moves have corners that another seam may move at the same time.
+//! among that seam's vertices. Stitching reads it to see whether the grid triangles around a
+//! point it moves have corners that another seam may move at the same time (a point of several
+//! seams moves in none). Views of arrays the zipper fills before the seams are stitched and
+//! leaves unchanged until all are: any number of threads may read them meanwhile.
 struct SeamPixelMap {
   static constexpr std::uint16_t kNoSeam = 0, kManySeams = 0xFFFF;
   const std::uint16_t* seam = nullptr;  // null: not known (every other corner may be another seam's)
@@ -133,26 +135,29 @@ struct SeamPixels {
 };
 
 //! How far stitching may take a seam point off its pixel in its own camera, in pixels (the crease
-//! relaxation, the one step that moves a point off its pixel's ray): beside a kept triangle with a
-//! corner of another seam, and anywhere. To turn over, a triangle of the pixel grid must pass
-//! through a degenerate state, one corner on the segment between the other two; each corner lies
-//! at least 1/√2 pixel from that segment and, with all three shifted 0.35 pixel at most, comes at
-//! most 0.70 pixel closer to it. Anywhere else the kept triangles are tested exactly, and the
-//! limit keeps the point near the pixel its colour is sampled at: on samba-4cam frames 0, 10, 20
-//! and 30 the seams' folds were the same with a limit of 1.5 pixels as with none (filtered 6;
-//! 8 with 1 pixel, 10 with 0.35), and without one points went up to 4 pixels off.
+//! relaxation, the one step that moves a point off its pixel's ray): where a grid triangle around
+//! it has a corner of another seam, and anywhere. To turn over, a triangle of the pixel grid must
+//! pass through a degenerate state, one corner on the segment between the other two; each corner
+//! lies at least 1/√2 pixel from that segment and, with all three shifted 0.35 pixel at most,
+//! comes at most 0.70 pixel closer to it. The other triangles are tested exactly, which keeps a
+//! point within about a pixel of its own; the limit of 1.5 pixels makes sure it stays near the
+//! pixel its colour is sampled at (on samba-4cam frames 0, 10, 20 and 30 the seams' folds were
+//! the same with a limit of 1 pixel as with none).
 inline constexpr float kMostPixelShiftBesideOtherSeam = 0.35f;
 inline constexpr float kMostPixelShift = 1.5f;
 
-//! Element function: may seam `own`'s vertex at `pixel` of `view` move to p (world)? Not if a kept
-//! triangle of `view` around the pixel (one in its bit matrix) would turn to face away from the
-//! camera, tested exactly, by its orientation in the image, where its other corners are no seam's
-//! (on their pixels) or seam `own`'s (at `positions`, indexed through `map`); nor if p projects
-//! farther than kMostPixelShift from the pixel, or kMostPixelShiftBesideOtherSeam where a triangle
-//! has a corner of another seam (that seam may move it at the same time, under the same bound).
-//! `map.seam` null: every other corner counts as another seam's.
-bool kept_triangles_upright(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
-                            const std::vector<Eigen::Vector3f>& positions);
+//! Element function: may seam `own`'s vertex at `pixel` of `view` move to p (world) and leave the
+//! pixel grid around it unfolded in the image? Not if one of the six triangles of the grid with
+//! the pixel as a corner, kept or not, would turn over in the image: tested exactly where its
+//! other corners are on their pixels (no seam's, or several seams', which none moves) or seam
+//! `own`'s (at `positions`, indexed through `map`). While none turns over, the point stays inside
+//! the polygon of its neighbours, so no kept triangle faces away from the camera or lies over
+//! another. Nor if p projects farther than kMostPixelShift from the pixel, or than
+//! kMostPixelShiftBesideOtherSeam where a triangle has a corner of another seam (which that seam
+//! may move at the same time, under the same bound). `map.seam` null: every other corner counts
+//! as another seam's.
+bool keeps_pixel_grid_unfolded(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
+                               const Eigen::Vector3f* positions);
 
 //! A seam between its two phases: its vertices chosen and its triangles not yet made.
 struct TakenSeam {
@@ -174,7 +179,10 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
 
 //! The second phase: the seam's triangles (Delaunay), into taken.seam. Reads the meshes only, so
 //! any number run at once; `kept_a`, `kept_b` say which triangles counted as kept when the seam
-//! was taken. `centre_a`, `centre_b`: the cameras' centres in the world.
+//! was taken. `centre_a`, `centre_b`: the cameras' centres in the world. `pixels`: which seam
+//! each pixel of the two cameras is a vertex of, for every seam being stitched at the same time,
+//! and this seam's number there (a default SeamPixels knows none: every point is then held
+//! within kMostPixelShiftBesideOtherSeam of its pixel).
 void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
                  const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken);
 

@@ -17,6 +17,24 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Calls `f` when it goes out of scope unless dismissed: clean-up that must also run when an
+// exception passes.
+template <typename F>
+class OnScopeExit {
+ public:
+  explicit OnScopeExit(F f) : f_(std::move(f)) {}
+  OnScopeExit(const OnScopeExit&) = delete;
+  OnScopeExit& operator=(const OnScopeExit&) = delete;
+  ~OnScopeExit() {
+    if (armed_) f_();
+  }
+  void dismiss() { armed_ = false; }
+
+ private:
+  F f_;
+  bool armed_ = true;
+};
+
 
 // Pyramid level of the ownership score. Level 1 (320×240 for a Kinect): for the border distance
 // it scored as per-level distances did (samba-4cam: accuracy, completeness and components alike;
@@ -160,6 +178,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
   // 2n − 3 rounds for n cameras).
   if (rounds.size() > 254) throw InvalidInput("zipper: more than 254 rounds of camera pairs (too many cameras)");
+  // Stitching numbers the seams from 1 in 16 bits (SeamPixelMap).
+  if (result.pairs.size() >= SeamPixelMap::kManySeams) throw InvalidInput("zipper: more than 65 534 overlapping camera pairs");
   result.stats.overlap_ms = ms_since(t);
 
   // Coarse to fine FRBR.
@@ -214,6 +234,21 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // later rounds took more counts those later-taken triangles as kept, as they were for it.
   std::vector<TakenSeam> taken(result.pairs.size());
   std::vector<int> round_of_pair(result.pairs.size(), 0);
+  // The seams mark the scratch's cameras (the round that took each triangle, the seam of each
+  // pixel); the next call reads those marks as its own seams', so they are cleared after the
+  // stitching, and also when an exception leaves it half done.
+  auto clear_seam_marks = [&] {
+    for (size_t i = 0; i < taken.size(); ++i) {
+      const auto [a, b] = result.pairs[i];
+      for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
+      for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
+      for (const PixelVertex& v : taken[i].seam.vertices) {
+        std::vector<std::uint16_t>& seam_at_pixel = scratch.cameras[v.camera].seam_at_pixel;
+        if (static_cast<size_t>(v.pixel) < seam_at_pixel.size()) seam_at_pixel[v.pixel] = SeamPixelMap::kNoSeam;
+      }
+    }
+  };
+  OnScopeExit clear_seam_marks_on_error(clear_seam_marks);
   for (int c : active) scratch.cameras[c].taken_round.resize(cameras[c].mesh->triangles.size() * 2, 0);
   for (size_t r = 0; r < rounds.size(); ++r) {
     const auto& round = rounds[r];
@@ -230,8 +265,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // Which seam each pixel is a vertex of (SeamPixelMap), kept until every seam is stitched. Pixels
   // that are vertices of more than one seam (where three cameras' seams meet) keep their own
   // place: each seam would move them towards its other camera's surface.
-  // Seams are numbered from 1 in 16 bits.
-  if (taken.size() >= SeamPixelMap::kManySeams - 1) throw InvalidInput("zipper: more than 65 533 overlapping camera pairs");
   for (int c : active) {
     scratch.cameras[c].seam_at_pixel.resize(cameras[c].mesh->triangles.size(), SeamPixelMap::kNoSeam);
     scratch.cameras[c].seam_vertex_at_pixel.resize(cameras[c].mesh->triangles.size());
@@ -363,11 +396,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     }
   }, task_threads);
   std::vector<Seam> seams(taken.size());
+  clear_seam_marks();
+  clear_seam_marks_on_error.dismiss();
   for (size_t i = 0; i < taken.size(); ++i) {
-    const auto [a, b] = result.pairs[i];
-    for (const PixelVertex& v : taken[i].seam.vertices) seam_at(v) = SeamPixelMap::kNoSeam;
-    for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
-    for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
     seams[i] = std::move(taken[i].seam);
     result.stats.seam_taken += seams[i].triangles_taken;
     result.stats.seam_pca += seams[i].used_pca;

@@ -132,9 +132,9 @@ std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
 // triangles faced away from every camera; filtered, at 54 edges (26 after, for 8 825). Moving the
 // points towards the other camera's layer and flipping creases out left 53 and 16; moving them to
 // halfway between the layers along the surface normal and fairing the seam, 29 and 3; relaxing
-// the creases left along the layout's line of sight (clipping.cc, relax_creases), 26 and 0; and
-// letting the points beside no other seam's go as far as their kept triangles stay upright, 25
-// and 0.
+// the creases left along the layout's line of sight (clipping.cc, relax_creases), 26 and 0;
+// testing the pixel grid around each moved point exactly where no other seam's point is a corner
+// of it (keeps_pixel_grid_unfolded), with three rounds, 27 and 0.
 TEST(Reconstruct, ZipperSeamsDoNotFold) {
   const auto [rig, frames] = samba_frame_with_true_poses(0);
   for (const bool bilateral : {false, true}) {
