@@ -130,6 +130,26 @@ inline void triangle_pixels(int index, int width, TriangleBit bit, int out[3]) {
   }
 }
 
+//! Calls f(cell, bit, corners, k) for each of the (up to six) triangles of the pixel grid of a
+//! width × height image that have pixel `pixel` as a corner, whether a mesh has them or not, in
+//! cell order: `corners` as triangle_pixels gives them, corners[k] == pixel.
+template <typename F>
+void for_each_grid_triangle_at_pixel(int pixel, int width, int height, F&& f) {
+  const int u = pixel % width, v = pixel / width;
+  for (int cell_v = std::max(0, v - 1); cell_v <= std::min(v, height - 2); ++cell_v) {
+    for (int cell_u = std::max(0, u - 1); cell_u <= std::min(u, width - 2); ++cell_u) {
+      const int cell = cell_v * width + cell_u;
+      for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+        int corners[3];
+        triangle_pixels(cell, width, bit, corners);
+        for (int k = 0; k < 3; ++k) {
+          if (corners[k] == pixel) f(cell, bit, static_cast<const int*>(corners), k);
+        }
+      }
+    }
+  }
+}
+
 //! True when the triangle exists and one of its three edge neighbours does not.
 //! Upper triangle of (u, v): neighbours are the lower triangles of (u, v−1), (u−1, v) and (u, v).
 //! Lower triangle of (u, v): neighbours are the upper triangles of (u, v), (u+1, v) and (u, v+1).

@@ -712,38 +712,30 @@ bool keeps_pixel_grid_unfolded(const MeshView& view, const SeamPixelMap& map, st
   // Every triangle of the pixel grid with the pixel as a corner, kept or not: while none turns
   // over, the point stays inside the polygon of its neighbours, so it cannot move over a kept
   // triangle it is not a corner of either.
-  bool beside_other_seam = map.seam == nullptr;
-  for (int cell_v = std::max(0, v - 1); cell_v <= std::min(v, mesh.height - 2) && map.seam != nullptr; ++cell_v) {
-    for (int cell_u = std::max(0, u - 1); cell_u <= std::min(u, width - 2); ++cell_u) {
-      for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-        int corners[3];
-        triangle_pixels(cell_v * width + cell_u, width, bit, corners);
-        if (corners[0] != pixel && corners[1] != pixel && corners[2] != pixel) continue;
-        Eigen::Vector2f grid[3], image[3];
-        bool other_seam = false;
-        for (int k = 0; k < 3 && !other_seam; ++k) {
-          const int q = corners[k];
-          grid[k] = grid_point(q);
-          const std::uint16_t seam = map.seam[q];
-          if (q == pixel) {
-            image[k] = Eigen::Vector2f(moved.x, moved.y);
-          } else if (seam == SeamPixelMap::kNoSeam || seam == SeamPixelMap::kManySeams) {
-            image[k] = grid[k];  // on its pixel's ray: a point of several seams stays there
-          } else if (seam == own) {
-            const ViewPoint seen = project_into(view, positions[map.vertex[q]]);
-            image[k] = Eigen::Vector2f(seen.x, seen.y);
-          } else {
-            other_seam = true;
-          }
-        }
-        if (other_seam) {
+  bool beside_other_seam = map.seam == nullptr, turns_over = false;
+  if (map.seam != nullptr) {
+    for_each_grid_triangle_at_pixel(pixel, width, mesh.height, [&](int, TriangleBit, const int* corners, int) {
+      Eigen::Vector2f grid[3], image[3];
+      for (int k = 0; k < 3; ++k) {
+        const int q = corners[k];
+        grid[k] = grid_point(q);
+        const std::uint16_t seam = map.seam[q];
+        if (q == pixel) {
+          image[k] = Eigen::Vector2f(moved.x, moved.y);
+        } else if (seam == SeamPixelMap::kNoSeam || seam == SeamPixelMap::kManySeams) {
+          image[k] = grid[k];  // on its pixel's ray: a point of several seams stays there
+        } else if (seam == own) {
+          const ViewPoint seen = project_into(view, positions[map.vertex[q]]);
+          image[k] = Eigen::Vector2f(seen.x, seen.y);
+        } else {
           beside_other_seam = true;
-        } else if (!same_orientation(signed_area2(grid[0], grid[1], grid[2]), signed_area2(image[0], image[1], image[2]))) {
-          return false;
+          return;
         }
       }
-    }
+      turns_over = turns_over || !same_orientation(signed_area2(grid[0], grid[1], grid[2]), signed_area2(image[0], image[1], image[2]));
+    });
   }
+  if (turns_over) return false;
   const float du = moved.x - static_cast<float>(u), dv = moved.y - static_cast<float>(v);
   const float most = beside_other_seam ? kMostPixelShiftBesideOtherSeam : kMostPixelShift;
   return du * du + dv * dv <= most * most;

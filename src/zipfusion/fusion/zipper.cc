@@ -457,22 +457,11 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         outgoing[i].clear();
         const PixelVertex& sv = seam_vertices[i];
         const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
-        const int u = sv.pixel % depth_mesh.width, v = sv.pixel / depth_mesh.width;
-        for (int cv = std::max(0, v - 1); cv <= std::min(v, depth_mesh.height - 2); ++cv) {
-          for (int cu = std::max(0, u - 1); cu <= std::min(u, depth_mesh.width - 2); ++cu) {
-            const int cell = cv * depth_mesh.width + cu;
-            for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
-              if (!(depth_mesh.triangles[cell] & bit)) continue;
-              int pixels[3];
-              triangle_pixels(cell, depth_mesh.width, bit, pixels);
-              for (int k = 0; k < 3; ++k) {
-                if (pixels[k] != sv.pixel) continue;
-                const int to = seam_slot[vertex({sv.camera, pixels[(k + 1) % 3]})];
-                if (to >= 0) outgoing[i].push_back(to);
-              }
-            }
-          }
-        }
+        for_each_grid_triangle_at_pixel(sv.pixel, depth_mesh.width, depth_mesh.height, [&](int cell, TriangleBit bit, const int* pixels, int k) {
+          if (!(depth_mesh.triangles[cell] & bit)) return;
+          const int to = seam_slot[vertex({sv.camera, pixels[(k + 1) % 3]})];
+          if (to >= 0) outgoing[i].push_back(to);
+        });
       }
     }, options.num_threads);
     auto has_edge = [&](int from, int to) {
