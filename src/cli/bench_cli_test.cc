@@ -44,6 +44,11 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_GT(configs["zipper"]["ms"]["clipping"]["median"].get<double>(), 0);
   EXPECT_LT(configs["zipper"]["triangles"].get<double>(), configs["separate"]["triangles"].get<double>());
   EXPECT_EQ(configs["zipper 1 thread"]["triangles"], configs["zipper"]["triangles"]);
+  // Overlapping pairs: none for separate meshes; of three cameras in a ring, one to three.
+  EXPECT_EQ(configs["separate"]["pairs"].get<double>(), 0);
+  EXPECT_GE(configs["zipper"]["pairs"].get<double>(), 1);
+  EXPECT_LE(configs["zipper"]["pairs"].get<double>(), 3);
+  EXPECT_EQ(configs["zipper 1 thread"]["pairs"], configs["zipper"]["pairs"]);
   EXPECT_EQ(configs["zipper border ownership"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_NE(configs["zipper border ownership"]["triangles"], configs["zipper"]["triangles"]);
   EXPECT_GT(configs["zipper+separable filter"]["ms"]["filter"]["median"].get<double>(), 0);

@@ -68,6 +68,7 @@ struct ConfigResult {
   std::string name;
   std::map<std::string, Percentiles> stages;
   double triangles = 0;
+  double pairs = 0;  // overlapping camera pairs the zipper found (0 for separate meshes)
   double fps = 0;
   double stolen_share = 0;  // of all CPU time while this configuration ran (cpu_times)
 };
@@ -123,18 +124,20 @@ ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::ve
   FrameReconstructor reconstructor(rig, config.options);
   reconstructor.recycle(reconstructor.reconstruct(frames.front()).mesh);  // buffers sized: steady state
   std::map<std::string, std::vector<double>> samples;
-  std::vector<double> triangles;
+  std::vector<double> triangles, pairs;
   for (int pass = 0; pass < repeat; ++pass) {
     for (const FrameSet& set : frames) {
       FrameResult result = reconstructor.reconstruct(set);
       for (const auto& [name, field] : kStages) samples[name].push_back(result.times.*field);
       triangles.push_back(static_cast<double>(result.mesh.triangle_count()));
+      pairs.push_back(result.zipper.pairs);
       reconstructor.recycle(std::move(result.mesh));  // as the pipeline does after its sink
     }
   }
   ConfigResult out{.name = config.name};
   for (const auto& [name, values] : samples) out.stages[name] = percentiles(values);
   out.triangles = percentiles(triangles).median;
+  out.pairs = percentiles(pairs).median;
   out.fps = out.stages["total"].median > 0 ? 1000.0 / out.stages["total"].median : 0;
   const CpuTimes after = cpu_times();
   // Clamped: some kernels' steal counter has been seen to step back.
@@ -228,7 +231,7 @@ void run_bench(const BenchArgs& args) {
   for (const ConfigResult& r : results) {
     nlohmann::ordered_json stages;
     for (const auto& [name, field] : kStages) stages[name] = {{"median", r.stages.at(name).median}, {"p95", r.stages.at(name).p95}};
-    report["configs"].push_back({{"name", r.name}, {"ms", stages}, {"fps", r.fps}, {"triangles", r.triangles},
+    report["configs"].push_back({{"name", r.name}, {"ms", stages}, {"fps", r.fps}, {"triangles", r.triangles}, {"pairs", r.pairs},
                                  {"cpu_stolen_share", r.stolen_share}});
   }
   report["peak_rss_mb"] = peak_resident_mb();
