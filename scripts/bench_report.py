@@ -202,7 +202,9 @@ def main(folder):
         for result in filter(None, kernels):
             for b in result["benchmarks"]:
                 if b.get("aggregate_name") == "median":
-                    out.append(f"| {b['run_name']} | {b['real_time']:.3f} |")
+                    # Each benchmark reports in its own unit (Unit(...)); the table is in ms.
+                    to_ms = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
+                    out.append(f"| {b['run_name']} | {b['real_time'] * to_ms:.3f} |")
         out.append("")
 
     out += ["## Where the time goes", "", "See [profile.md](profile.md): a `perf` profile of the stages, taken separately from "
