@@ -100,9 +100,9 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   const nlohmann::json stats = nlohmann::json::parse(in);
   ASSERT_EQ(stats["frames"].size(), 2u);
   // --ownership and --seam-smoothing auto are resolved by the filter and recorded as used: border
-  // and 0 with the bilateral filter (the default), smoothness and 2 without a filter.
+  // and 1 with the bilateral filter (the default), smoothness and 2 without a filter.
   EXPECT_EQ(stats["options"]["ownership"], "border");
-  EXPECT_EQ(stats["options"]["seam_smoothing_px"], 0);
+  EXPECT_EQ(stats["options"]["seam_smoothing_px"], 1);
   const std::string unfiltered = (dir_ / "unfiltered").string();
   ASSERT_EQ(run("reconstruct " + capture + " --out " + unfiltered + " --frames 1:2 --filter none").exit_code, 0);
   std::ifstream unfiltered_stats_file(fs::path(unfiltered) / "stats.json");

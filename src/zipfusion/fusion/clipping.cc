@@ -424,13 +424,14 @@ struct SeamSurface {
   // the window's pixels lie on one line).
   void point_and_normal(int pixel, Eigen::Vector3f& point, Eigen::Vector3f& normal) const {
     const DepthMesh& mesh = *view.mesh;
-    // The plane fitted for the normal: on filtered depth (radius 0) over the 3×3 pixels two apart
-    // around it; where the seam smooths, over 5×5 pixels every (1 + radius / 2)th. On unfiltered
-    // depth (radius 2) the Kinect's noise (about 1 cm at 2.5 m) tilts a plane over ±2 pixels by
-    // tens of degrees (samba-4cam frames 0, 10, 20 and 30 unfiltered: 170 folded edges in the
-    // seams with a plane over the 5×5 pixels around, 142 over the 9×9, 140 over every second of
-    // those, 167 over 3×3 pixels four apart, 212 two apart); filtered, every choice gave 20–23, and
-    // 3×3 pixels two apart costs least.
+    // The plane fitted for the normal: without smoothing (radius 0) over the 3×3 pixels two apart
+    // around it, the cheapest; where the seam smooths, over 5×5 pixels every (1 + radius / 2)th.
+    // On unfiltered depth (radius 2) the Kinect's noise (about 1 cm at 2.5 m) tilts a plane over
+    // ±2 pixels by tens of degrees (samba-4cam frames 0, 10, 20 and 30 unfiltered: 170 folded
+    // edges in the seams with a plane over the 5×5 pixels around, 142 over the 9×9, 140 over every
+    // second of those, 167 over 3×3 pixels four apart, 212 two apart). On filtered depth (radius
+    // 1, ReconstructOptions::seam_smoothing_px) frames 0–39 had 118 folded edges without
+    // smoothing, 103 with only this plane over the 5×5, 103 with only the 3×3 mean, 89 with both.
     const SurfaceFit fit = radius == 0 ? fit_surface(view, pixel, 1, 2) : fit_surface(view, pixel, 2, 1 + radius / 2);
     const float x = static_cast<float>(pixel % mesh.width), y = static_cast<float>(pixel / mesh.width);
     const float depth = radius == 0 ? mesh.depth[pixel] : smoothed_depth(view, pixel, radius);

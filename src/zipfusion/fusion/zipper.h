@@ -37,7 +37,7 @@ struct ZipperOptions {
   double max_seam_edge_m = 0.04;        // (III-D4) seam triangles with a longer edge are dropped
   // Seams: each point lies at the mean depth of its surface over (2·this+1)² pixels of the
   // meshes (SeamOptions::smoothing_radius); 0: as measured; −1: auto
-  // (ReconstructOptions::seam_smoothing_px(): 2 on unfiltered depth, 0 on filtered; here: 2).
+  // (ReconstructOptions::seam_smoothing_px(): 2 on unfiltered depth, 1 on filtered; here: 2).
   int seam_smoothing_px = -1;
   int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays, then the creases' corners (SeamOptions::fairing_iterations); 0: neither
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
