@@ -134,11 +134,11 @@ def main(folder):
     out += ["## Scaling", "", f"Synthetic rigs from `zipfusion synth` ({scale['frames'] if scale else '?'} frames, built-in human, "
             "Kinect noise, ring of 2.5 m radius), `zipfusion bench --repeat 2`: total ms, median.", "",
             "The one-thread column is the least disturbed by other guests of a shared machine (its CPU time stolen is "
-            "the last column's second figure).", "",
+            "the CPU-time-stolen column's second figure).", "",
             "What the zipper works on is the cameras' triangles (all of them are the separate meshes') and the overlapping "
             "pairs it finds: more cameras in one ring overlap more (each surface seen twice or more), and a finer depth "
-            "image gives more triangles per pixel. The last column divides the one-thread time by the cameras' triangles: "
-            "where it stays flat, the time grows linearly with the work.", "",
+            "image gives more triangles for the same surface. The last column divides the one-thread total (every stage, "
+            "foreground to assembly) by the cameras' triangles: where it stays flat, the time grows linearly with the work.", "",
             "| rig | zipper | zipper+filter | separate | zipper, 1 thread | CPU time stolen, % (zipper / 1 thread) "
             "| overlapping pairs | cameras' triangles | zipper, 1 thread, ns per camera triangle |",
             "|---|---|---|---|---|---|---|---|---|"]

@@ -48,7 +48,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
   cmd->add_option("--seam-smoothing", o.zipper.seam_smoothing_px,
                   "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels, in [0, 4], halved at each --lod level (0: as "
-                  "measured; -1: auto, 2 without the filter, 0 with it)")
+                  "measured; -1: auto, 2 without the filter, 1 with it)")
       ->capture_default_str();
   cmd->add_option("--seam-fairing", o.zipper.seam_fairing_iterations,
                   "Rounds of smoothing the seams' points along their rays towards their neighbours, in [0, 8], then the corners of the creases "

@@ -870,8 +870,8 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     for (size_t k = 0; k < points.size(); k += stride) insert_point(points[k]);
   }
   for (const auto& point : points) insert_point(point);
-  // With the seam laid out at locally averaged depth (unfiltered; filtered depth is laid out as
-  // measured, as regular), about 90 % of the kept edges are already edges of the triangulation:
+  // With the seam laid out at locally averaged depth (the default; filtered depth laid out as
+  // measured is about as regular), about 90 % of the kept edges are already edges of the triangulation:
   // those are marked as constrained in place (which keeps it constrained Delaunay), without
   // CGAL's general insertion, which first looks for vertices on the segment and allocates a work
   // stack per call (clipping 9 % fewer instructions).

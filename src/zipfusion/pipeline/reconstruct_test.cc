@@ -167,7 +167,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
 // With the filter, the seams' default (points at the mean depth of their surface over 3×3 pixels,
 // normals from a plane over the 5×5) folds the zippered meshes less than laying the points out
 // where they were measured: on samba-4cam frames 0–39 with the true poses, 89 folded edges
-// against 118 (eval's folded_edges), for 0.004 mm of mean accuracy (docs/design.md).
+// against 118 (count_folded_edges over the whole mesh), for 0.004 mm of mean accuracy (docs/design.md).
 TEST(Reconstruct, FilteredSeamsFoldLessWithTheirDefaultSmoothing) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
   Rig rig = *capture.ground_truth_rig();
