@@ -113,12 +113,17 @@ TEST(Reconstruct, ZipperUsesEachCamerasSdcThreshold) {
   EXPECT_LT(result.mesh.triangle_count(), every * 11 / 10);
 }
 
-// A samba-4cam frame set and the rig with its ground-truth poses (and the capture's volume).
-std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
-  const Capture capture = Capture::open(kSharedData / "samba-4cam");
+// A capture's rig with its ground-truth poses (and the capture's volume).
+Rig rig_with_true_poses(const Capture& capture) {
   Rig rig = *capture.ground_truth_rig();
   rig.volume = capture.rig().volume;
-  return {std::move(rig), capture.load_frame(frame)};
+  return rig;
+}
+
+// A samba-4cam frame set and the rig with its ground-truth poses.
+std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
+  const Capture capture = Capture::open(kSharedData / "samba-4cam");
+  return {rig_with_true_poses(capture), capture.load_frame(frame)};
 }
 
 // The seams fold no more than a few of their triangles over their neighbours (count_folded_edges:
@@ -170,8 +175,7 @@ TEST(Reconstruct, ZipperSeamsDoNotFold) {
 // against 118 (count_folded_edges over the whole mesh), for 0.004 mm of mean accuracy (docs/design.md).
 TEST(Reconstruct, FilteredSeamsFoldLessWithTheirDefaultSmoothing) {
   const Capture capture = Capture::open(kSharedData / "samba-4cam");
-  Rig rig = *capture.ground_truth_rig();
-  rig.volume = capture.rig().volume;
+  const Rig rig = rig_with_true_poses(capture);
   const ReconstructOptions smoothed{.mode = ReconstructMode::kZipper, .bilateral = true};
   ASSERT_EQ(smoothed.seam_smoothing_px(), 1);
   ReconstructOptions as_measured = smoothed;
