@@ -142,7 +142,7 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
 // a second time, can be split again at a slightly different point (one seam triangle of 12 000
 // differed on samba-4cam frame 20 when edges shared by two kept triangles came twice).
 void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex, int end_vertex, const Seam& seam,
-                    std::vector<std::pair<int, int>>& edges) {
+                    std::vector<std::pair<int, int>>& edges, std::vector<KeptSide>& sides) {
   const DepthMesh& mesh = *view.mesh;
   const int width = mesh.width;
   auto seam_vertex = [&](int pixel) {
@@ -157,21 +157,37 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
     // cell (u, v): (u, v), (u, v + 1), (u + 1, v); lower: (u + 1, v), (u, v + 1), (u + 1, v + 1)).
     const unsigned here = cell_bits(mesh, u, v), left = cell_bits(mesh, u - 1, v), up = cell_bits(mesh, u, v - 1),
                    up_left = cell_bits(mesh, u - 1, v - 1);
-    const struct {
+    // Each grid edge from p with the two grid triangles on its sides (upper triangle of cell (u, v):
+    // pixels (u, v), (u, v + 1), (u + 1, v) in that order; lower: (u + 1, v), (u, v + 1), (u + 1, v + 1)):
+    // whether the mesh has each, its third corner, and whether it runs from p to the edge's other end.
+    struct Side {
       bool kept;
+      int third;
+      bool forward;
+    };
+    const struct {
       int other;
+      Side sides[2];
     } grid_edges[6] = {
-        {((here & kUpperTriangle) | (up & kLowerTriangle)) != 0, p + 1},          // right
-        {((left & kUpperTriangle) | (up_left & kLowerTriangle)) != 0, p - 1},     // left
-        {((here & kUpperTriangle) | (left & kLowerTriangle)) != 0, p + width},    // down
-        {((up & kUpperTriangle) | (up_left & kLowerTriangle)) != 0, p - width},   // up
-        {left != 0, p + width - 1},                                               // down and left
-        {up != 0, p - width + 1},                                                 // up and right
+        {p + 1, {{(here & kUpperTriangle) != 0, p + width, false}, {(up & kLowerTriangle) != 0, p - width + 1, true}}},        // right
+        {p - 1, {{(left & kUpperTriangle) != 0, p + width - 1, true}, {(up_left & kLowerTriangle) != 0, p - width, false}}},   // left
+        {p + width, {{(here & kUpperTriangle) != 0, p + 1, true}, {(left & kLowerTriangle) != 0, p + width - 1, false}}},      // down
+        {p - width, {{(up & kUpperTriangle) != 0, p - width + 1, false}, {(up_left & kLowerTriangle) != 0, p - 1, true}}},     // up
+        {p + width - 1, {{(left & kUpperTriangle) != 0, p - 1, false}, {(left & kLowerTriangle) != 0, p + width, true}}},      // down and left
+        {p - width + 1, {{(up & kUpperTriangle) != 0, p - width, true}, {(up & kLowerTriangle) != 0, p + 1, false}}},          // up and right
     };
     for (const auto& edge : grid_edges) {
-      if (!edge.kept) continue;
+      if (!edge.sides[0].kept && !edge.sides[1].kept) continue;
       const int j = seam_vertex(edge.other);
-      if (j > index) edges.emplace_back(index, j);
+      if (j <= index) continue;
+      edges.emplace_back(index, j);
+      // Where both sides are kept the edge is inside the kept mesh: no seam face borders it.
+      if (edge.sides[0].kept && edge.sides[1].kept) {
+        sides.push_back({});
+        continue;
+      }
+      const Side& side = edge.sides[0].kept ? edge.sides[0] : edge.sides[1];
+      sides.push_back({.third_pixel = side.third, .third_vertex = seam_vertex(side.third), .forward = side.forward});
     }
   }
 }
@@ -248,14 +264,79 @@ bool same_orientation(double before, double after) { return (before > 0 && after
 // (eval's count_folded_edges).
 constexpr float kCreaseCosine = -0.5f;
 
-// The cosine between the normals of edge (f, i)'s two faces; 1 (no crease) where either is
-// infinite or not output. The faces' info must be set (set_face_info).
-float edge_cosine(const Delaunay& triangulation, Delaunay::Face_handle f, int i) {
-  const Delaunay::Face_handle g = f->neighbor(i);
-  return !triangulation.is_infinite(f) && !triangulation.is_infinite(g) && f->info().output && g->info().output
-             ? f->info().normal.dot(g->info().normal)
-             : 1.0f;
-}
+// The creases of a seam's output faces, as the cosines between unit normals (1: no crease): between
+// two output faces, and between an output face and the kept triangle beyond a kept edge (a
+// constrained edge with no output face on its other side). The kept triangle shares the edge's
+// corners, which the seam moves, so its normal is taken from their positions as they are; a
+// corner that is not this seam's vertex stays where it was measured, as the output has it (or,
+// beside another seam's vertex, near enough). The faces' info must be set (set_face_info).
+class Creases {
+ public:
+  Creases(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const MeshView& a, const MeshView& b,
+          const TakenSeam& taken)
+      : triangulation_(triangulation), positions_(positions), first_(taken.seam.vertices.size() + 1, 0) {
+    // Each kept edge under its lower end (constraints are (lower, higher)), in the order given.
+    for (size_t k = 0; k < taken.constraints.size(); ++k) {
+      if (taken.kept_sides[k].third_pixel >= 0) ++first_[taken.constraints[k].first + 1];
+    }
+    for (size_t i = 1; i < first_.size(); ++i) first_[i] += first_[i - 1];
+    kept_.resize(first_.back());
+    std::vector<int> next(first_.begin(), first_.end() - 1);
+    for (size_t k = 0; k < taken.constraints.size(); ++k) {
+      const KeptSide& side = taken.kept_sides[k];
+      if (side.third_pixel < 0) continue;
+      const auto [i, j] = taken.constraints[k];
+      const MeshView& view = taken.seam.vertices[i].camera == a.camera ? a : b;
+      kept_[next[i]++] = {i, j, side, side.third_vertex >= 0 ? Eigen::Vector3f::Zero() : view.mesh->point(side.third_pixel)};
+    }
+  }
+
+  float cosine(Delaunay::Face_handle f, int i) const {
+    const Delaunay::Face_handle g = f->neighbor(i);
+    // An infinite face is never output (set_face_info is given finite faces only).
+    const bool f_output = f->info().output, g_output = g->info().output;
+    if (f_output && g_output) return f->info().normal.dot(g->info().normal);
+    if (f_output == g_output || !f->is_constrained(i)) return 1.0f;
+    const int u = f->vertex(Delaunay::cw(i))->info().index, v = f->vertex(Delaunay::ccw(i))->info().index;
+    if (u < 0 || v < 0) return 1.0f;
+    const Eigen::Vector3f kept = kept_normal(u, v);
+    return kept.isZero() ? 1.0f : (f_output ? f : g)->info().normal.dot(kept);
+  }
+
+  // The face of edge (f, i) that is output, and its index of the edge; f where neither is.
+  std::pair<Delaunay::Face_handle, int> output_side(Delaunay::Face_handle f, int i) const {
+    const Delaunay::Face_handle g = f->neighbor(i);
+    if (!f->info().output && g->info().output) {
+      return {g, triangulation_.mirror_index(f, i)};
+    }
+    return {f, i};
+  }
+
+ private:
+  struct Kept {
+    int i, j;  // the edge's ends, i < j
+    KeptSide side;
+    Eigen::Vector3f third;  // where side.third_vertex is −1
+  };
+  // The unit normal of the kept triangle beside seam edge (u, v), turned as set_face_info turns a
+  // seam face's (the output flips the seam's faces: stitch_seam); zero where there is none.
+  Eigen::Vector3f kept_normal(int u, int v) const {
+    const int lower = std::min(u, v), higher = std::max(u, v);
+    for (int k = first_[lower]; k < first_[lower + 1]; ++k) {
+      const Kept& kept = kept_[k];
+      if (kept.j != higher) continue;
+      const Eigen::Vector3f& third = kept.side.third_vertex >= 0 ? positions_[kept.side.third_vertex] : kept.third;
+      const Eigen::Vector3f &from = positions_[kept.side.forward ? kept.i : kept.j], &to = positions_[kept.side.forward ? kept.j : kept.i];
+      return -(to - from).cross(third - from).normalized();
+    }
+    return Eigen::Vector3f::Zero();
+  }
+
+  const Delaunay& triangulation_;
+  const std::vector<Eigen::Vector3f>& positions_;
+  std::vector<int> first_;  // per seam vertex: where its kept edges to higher vertices begin in kept_
+  std::vector<Kept> kept_;
+};
 
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
 // Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
@@ -269,25 +350,57 @@ float edge_cosine(const Delaunay& triangulation, Delaunay::Face_handle f, int i)
 // otherwise it is flipped back. A flip takes its two faces over (CGAL's data structure reuses
 // them), so only theirs needs setting again. Every finite face's info must be set
 // (set_face_info) and is kept so. `flat`: the points' layout, which after fairing is no longer
-// CGAL's (fair_seam). `candidates` is scratch.
+// CGAL's (fair_seam). The creases looked for first are those on the edges of `faces`, or on every
+// edge where it is empty. `candidates` is scratch.
 template <typename Output>
 void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const std::vector<Eigen::Vector2f>& flat,
-                      float max_edge2, Output&& output, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+                      float max_edge2, Output&& output, const Creases& creases, const std::vector<Delaunay::Face_handle>& faces,
+                      std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
   // The sharpest crease over edge (f, i) and the four outer edges of its quadrilateral.
   auto sharpest = [&](Delaunay::Face_handle f, int i) {
     const Delaunay::Face_handle g = f->neighbor(i);
     const int j = triangulation.mirror_index(f, i);
-    return std::min({edge_cosine(triangulation, f, i), edge_cosine(triangulation, f, Delaunay::cw(i)),
-                     edge_cosine(triangulation, f, Delaunay::ccw(i)), edge_cosine(triangulation, g, Delaunay::cw(j)),
-                     edge_cosine(triangulation, g, Delaunay::ccw(j))});
+    return std::min({creases.cosine(f, i), creases.cosine(f, Delaunay::cw(i)), creases.cosine(f, Delaunay::ccw(i)),
+                     creases.cosine(g, Delaunay::cw(j)), creases.cosine(g, Delaunay::ccw(j))});
   };
-  auto creased = [&](Delaunay::Face_handle f, int i) { return !f->is_constrained(i) && edge_cosine(triangulation, f, i) < kCreaseCosine; };
   auto edge_vertices = [](Delaunay::Face_handle f, int i) { return std::pair{f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))}; };
+  // A creased edge is a candidate itself; a constrained one (a kept edge, mostly against the kept
+  // triangle beyond it) stays, and the other two edges of its output face are the candidates:
+  // flipping one gives the face another third corner.
+  auto queue_if_creased = [&](Delaunay::Face_handle f, int i) {
+    if (!(creases.cosine(f, i) < kCreaseCosine)) return;
+    if (!f->is_constrained(i)) {
+      candidates.push_back(edge_vertices(f, i));
+      return;
+    }
+    const Delaunay::Face_handle g = f->neighbor(i);
+    for (const auto& [face, edge] : {std::pair{f, i}, std::pair{g, triangulation.mirror_index(f, i)}}) {
+      if (triangulation.is_infinite(face) || !face->info().output) continue;
+      for (const int other : {Delaunay::cw(edge), Delaunay::ccw(edge)}) {
+        if (!face->is_constrained(other)) candidates.push_back(edge_vertices(face, other));
+      }
+    }
+  };
   candidates.clear();
-  for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) {
-    if (creased(edge->first, edge->second)) candidates.push_back(edge_vertices(edge->first, edge->second));
+  if (faces.empty()) {
+    for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) queue_if_creased(edge->first, edge->second);
   }
+  for (const Delaunay::Face_handle f : faces) {
+    for (int i = 0; i < 3; ++i) queue_if_creased(f, i);
+  }
+  // In the seam's order of points, each edge from its lower-numbered end: CGAL's edge iterator
+  // gives an edge from whichever of its two faces lies at the lower address, which differs from
+  // run to run, and the flips' result depends on their order. (Every candidate has two output
+  // faces or borders one, so both ends are seam vertices.)
+  auto index_pair = [](const std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>& edge) {
+    return std::pair{edge.first->info().index, edge.second->info().index};
+  };
+  for (auto& [u, v] : candidates) {
+    if (u->info().index > v->info().index) std::swap(u, v);
+  }
+  std::sort(candidates.begin(), candidates.end(), [&](const auto& x, const auto& y) { return index_pair(x) < index_pair(y); });
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   // A flip changes only its quadrilateral: creases left on its outer edges are queued in turn, up
   // to a bound that ends the pass whatever happens.
   const size_t most = 8 * candidates.size();
@@ -295,15 +408,17 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
     const auto [u, v] = candidates[k];
     Delaunay::Face_handle f;
     int i = 0;
-    if (!triangulation.is_edge(u, v, f, i) || !creased(f, i)) continue;
+    if (!triangulation.is_edge(u, v, f, i) || f->is_constrained(i)) continue;
     const Delaunay::Face_handle g = f->neighbor(i);
+    // Only between two output faces (so every corner is a seam vertex), where a crease is left.
+    if (triangulation.is_infinite(f) || triangulation.is_infinite(g) || !f->info().output || !g->info().output) continue;
+    const float before = sharpest(f, i);
+    if (!(before < kCreaseCosine)) continue;
     const Delaunay::Vertex_handle w = f->vertex(i), x = g->vertex(triangulation.mirror_index(f, i));
-    // Both faces are output, so every corner is a seam vertex.
     const Eigen::Vector2f &flat_w = flat[w->info().index], &flat_x = flat[x->info().index];
     const double side_u = signed_area2(flat_w, flat_x, flat[u->info().index]), side_v = signed_area2(flat_w, flat_x, flat[v->info().index]);
     if (!same_orientation(side_u, -side_v)) continue;
     if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
-    const float before = sharpest(f, i);
     triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
     set_face_info(f, positions, output);
     set_face_info(g, positions, output);
@@ -316,7 +431,7 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
       const int j = triangulation.mirror_index(h, e);
       for (const auto& [face, index] : {std::pair{h, Delaunay::cw(e)}, std::pair{h, Delaunay::ccw(e)}, std::pair{n, Delaunay::cw(j)},
                                         std::pair{n, Delaunay::ccw(j)}}) {
-        if (creased(face, index)) candidates.push_back(edge_vertices(face, index));
+        queue_if_creased(face, index);
       }
     } else {
       triangulation.flip(h, e);  // back: the same two triangles as before, in the faces f and g again
@@ -615,16 +730,18 @@ constexpr int kCreaseRelaxRounds = 3;
 template <typename Output, typename GridUnfolded>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
                    GridUnfolded&& grid_unfolded, const SeamLayout& layout, float max_edge2, float most, int rounds,
-                   std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output) {
+                   std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output, const Creases& creases) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
   auto is_seam_face = [](Delaunay::Face_handle f) {
     return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
   };
   std::vector<Delaunay::Vertex_handle> corners;
-  // Queues the four corners of each creased edge of face f.
+  // Queues the four corners of each creased edge of output face f (beyond a kept edge the fourth
+  // is not a seam vertex, or not this seam's to move).
   auto queue_creases_of = [&](Delaunay::Face_handle f) {
+    if (!f->info().output) return;
     for (int i = 0; i < 3; ++i) {
-      if (edge_cosine(triangulation, f, i) >= kCreaseCosine) continue;
+      if (creases.cosine(f, i) >= kCreaseCosine) continue;
       corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), f->neighbor(i)->vertex(triangulation.mirror_index(f, i))});
     }
   };
@@ -701,6 +818,93 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
   }
 }
 
+// Rounds of drop_crease_points (samba-4cam frames 0–39 filtered: the folded edges with a seam
+// face on either side went 48 → 9 with one round, 7 with two).
+constexpr int kCreaseDropRounds = 2;
+
+// Drops the seam points at the creases that flipping and relaxing left (flip_out_creases,
+// relax_creases): for each crease sharper than 60°, between two output faces or between one and
+// the kept triangle beyond a kept edge, the first of its corners that may go (the edge's ends,
+// then the output face's third corner, then the other face's) leaves the triangulation, which
+// fills the hole by Delaunay; the new faces' creases are then flipped out where they can be.
+// Most of those creases are slivers on a concave quadrilateral, which no flip mends (samba-4cam
+// frames 0–39 filtered: 68 of the 104 left after relaxing, and 22 more on a kept edge): the
+// point is one of two layers' points a millimetre or so apart, and the surface is whole without
+// it. A point on a kept edge (a constraint) stays, as does a point of two seams (`fixed`): its
+// pixel is used by the output either way. A dropped point's pixel is still a seam vertex, in no
+// face of it. Faces' info as in flip_out_creases, kept up to date.
+template <typename Output>
+void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>& fixed, const std::vector<Eigen::Vector3f>& positions,
+                        const std::vector<Eigen::Vector2f>& flat, float max_edge2, Output&& output, const Creases& creases, int rounds,
+                        std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+  if (triangulation.dimension() != 2) return;
+  auto may_go = [&](Delaunay::Vertex_handle v) {
+    const int i = v->info().index;
+    return !triangulation.is_infinite(v) && i >= 0 && (fixed.empty() || !fixed[i]) && !triangulation.are_there_incident_constraints(v);
+  };
+  std::vector<Delaunay::Vertex_handle> dropped, around;
+  std::vector<Delaunay::Face_handle> faces;
+  // The first of the corners of crease (f, i) that may go, into `dropped`.
+  auto consider = [&](Delaunay::Face_handle face, int edge) {
+    if (!(creases.cosine(face, edge) < kCreaseCosine)) return;
+    const auto [f, i] = creases.output_side(face, edge);
+    const Delaunay::Face_handle g = f->neighbor(i);
+    // Each pair in the seam's order of points (which of an edge's faces CGAL's iterator gives it
+    // from depends on their addresses).
+    auto ordered = [](Delaunay::Vertex_handle x, Delaunay::Vertex_handle y) {
+      return x->info().index <= y->info().index ? std::array{x, y} : std::array{y, x};
+    };
+    const auto ends = ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i)));
+    const auto far = ordered(f->vertex(i), g->vertex(triangulation.mirror_index(f, i)));
+    for (const Delaunay::Vertex_handle v : {ends[0], ends[1], far[0], far[1]}) {
+      if (may_go(v)) {
+        dropped.push_back(v);
+        return;
+      }
+    }
+  };
+  for (int round = 0; round < rounds; ++round) {
+    dropped.clear();
+    // Every crease the first time; then those on the faces the last round made or flipped.
+    if (round == 0) {
+      for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) consider(edge->first, edge->second);
+    } else {
+      for (const Delaunay::Face_handle f : faces) {
+        for (int i = 0; i < 3; ++i) consider(f, i);
+      }
+    }
+    if (dropped.empty()) return;
+    // In the seam's order of points (the handles' addresses differ from run to run).
+    auto by_index = [](Delaunay::Vertex_handle x, Delaunay::Vertex_handle y) { return x->info().index < y->info().index; };
+    std::sort(dropped.begin(), dropped.end(), by_index);
+    dropped.erase(std::unique(dropped.begin(), dropped.end()), dropped.end());
+    // The points around the holes: every new face has one as a corner.
+    around.clear();
+    for (const Delaunay::Vertex_handle v : dropped) {
+      Delaunay::Vertex_circulator w = triangulation.incident_vertices(v), first = w;
+      do {
+        if (!triangulation.is_infinite(w)) around.push_back(w);
+      } while (++w != first);
+    }
+    std::sort(around.begin(), around.end(), by_index);
+    around.erase(std::unique(around.begin(), around.end()), around.end());
+    around.erase(std::remove_if(around.begin(), around.end(),
+                                [&](Delaunay::Vertex_handle w) { return std::binary_search(dropped.begin(), dropped.end(), w, by_index); }),
+                 around.end());
+    for (const Delaunay::Vertex_handle v : dropped) triangulation.remove(v);
+    if (triangulation.dimension() != 2) return;
+    faces.clear();
+    for (const Delaunay::Vertex_handle w : around) {
+      Delaunay::Face_circulator f = triangulation.incident_faces(w), first = f;
+      do {
+        if (!triangulation.is_infinite(f)) faces.push_back(f);
+      } while (++f != first);
+    }
+    for (const Delaunay::Face_handle f : faces) set_face_info(f, positions, output);
+    flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, faces, candidates);
+  }
+}
+
 }  // namespace
 
 bool keeps_pixel_grid_unfolded(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
@@ -773,8 +977,8 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
   take_triangles(a, b, options.ownership_distance, scratch_a, seam);
   const int a_end = static_cast<int>(seam.vertices.size());
   take_triangles(b, a, options.ownership_distance, scratch_b, seam);
-  add_kept_edges(a, scratch_a, 0, a_end, seam, taken.constraints);
-  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints);
+  add_kept_edges(a, scratch_a, 0, a_end, seam, taken.constraints, taken.kept_sides);
+  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints, taken.kept_sides);
   clear_pixel_marks(a, scratch_a);
   clear_pixel_marks(b, scratch_b);
   taken.taken_a = scratch_a.taken;
@@ -896,8 +1100,9 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
            !covered_by_triangle(b, project_into(b, centroid), options.clipping_distance, kept_b);
   };
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
+  const Creases creases(triangulation, positions, a, b, taken);
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
-  flip_out_creases(triangulation, positions, flat, max_edge2, output, crease_candidates);
+  flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, {}, crease_candidates);
   if (options.fairing_iterations > 0) {
     // Does point i at p leave the pixel grid around it unfolded in its camera?
     auto grid_unfolded = [&](int i, const Eigen::Vector3f& p) {
@@ -905,8 +1110,9 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
       return keeps_pixel_grid_unfolded(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions.data());
     };
     relax_creases(triangulation, normals, taken.shared, grid_unfolded, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
-                  positions, flat, output);
+                  positions, flat, output, creases);
   }
+  drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_candidates);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];

@@ -24,7 +24,9 @@
 //! and a crease left sharper than 60° is flipped out where the other diagonal of its quadrilateral
 //! is smoother; the corners of any crease still left move towards their neighbours along the
 //! layout's line of sight, off their pixel's ray but not so far that the pixel grid around them
-//! folds in their own camera (keeps_pixel_grid_unfolded). A few creases remain (docs/design.md).
+//! folds in their own camera (keeps_pixel_grid_unfolded); a point at a crease left after that
+//! leaves the triangulation. A crease between a seam face and the kept triangle beyond a kept
+//! edge counts as one between two seam faces (docs/design.md).
 
 #include <cstdint>
 #include <cstring>
@@ -159,10 +161,21 @@ inline constexpr float kMostPixelShift = 1.5f;
 bool keeps_pixel_grid_unfolded(const MeshView& view, const SeamPixelMap& map, std::uint16_t own, int pixel, const Eigen::Vector3f& p,
                                const Eigen::Vector3f* positions);
 
+//! The kept triangle on one side of a kept edge (i, j) between seam vertices: its third corner,
+//! a pixel of the edge's camera (−1 where both sides of the edge are kept), that corner's index
+//! among the seam's vertices (−1 where it is not one), and whether the triangle runs from i to j
+//! (else from j to i). Stitching weighs the seam face on the edge's other side against it.
+struct KeptSide {
+  int third_pixel = -1;
+  int third_vertex = -1;
+  bool forward = true;
+};
+
 //! A seam between its two phases: its vertices chosen and its triangles not yet made.
 struct TakenSeam {
   Seam seam;                                      // vertices and triangles_taken; no triangles yet
   std::vector<std::pair<int, int>> constraints;   // the kept edges between seam vertices
+  std::vector<KeptSide> kept_sides;               // per constraint: the kept triangle beside it
   std::vector<int> taken_a, taken_b;              // triangle ids taken out of each mesh
   // Per vertex of the seam: whether another seam has its pixel as a vertex too. Such a point keeps
   // its own place (the seams would move it towards different cameras' surfaces, and the output

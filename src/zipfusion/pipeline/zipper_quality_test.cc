@@ -194,8 +194,9 @@ void expect_noisy_ring_targets(int cameras) {
   EXPECT_LE(q.zipper_area_m2, q.separate_area_m2 - 0.65 * q.redundant_area_m2);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
-  // Folds: the zipper has fewer than the separate meshes (6 cameras: 26 against 72, 28 with the
-  // filtered seams' points as measured (--seam-smoothing 0), 34 before the creases left were
+  // Folds: the zipper has fewer than the separate meshes (6 cameras: 24 against 72, 26 before the
+  // seams weighed creases against the kept triangles and dropped the points at those left, 28 with
+  // the filtered seams' points as measured (--seam-smoothing 0), 34 before the creases left were
   // relaxed, 50 before the seam's points were moved halfway between the layers and faired, 104
   // before the consensus and the crease flips, 172 when they were output at their measured depth;
   // 3 cameras: 18 against 37, 28 and 31 before, 18 too with the seams' 3×3 mean).
