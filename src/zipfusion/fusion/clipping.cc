@@ -343,8 +343,9 @@ class Creases {
 // by the layout alone; where the two meshes' points lie a few millimetres apart in depth, the
 // diagonal it chose can make two output triangles, both facing the virtual camera, meet at a
 // crease sharper than 60° (normals more than 120° apart, eval's count_folded_edges), where the
-// other diagonal makes them one slope. An unconstrained edge between two creased output faces is
-// flipped when its quadrilateral is strictly convex in 2-D (so both new faces are still
+// other diagonal makes them one slope. An unconstrained edge between two output faces is flipped,
+// where a crease (Creases: also one against the kept triangle beyond a kept edge) lies on it or,
+// for a crease on a kept edge, on its face's other edges, when its quadrilateral is strictly convex in 2-D (so both new faces are still
 // counter-clockwise in the layout: they face the virtual camera), the new diagonal is no longer
 // than max_edge, and the sharpest crease over the quadrilateral's five edges becomes less sharp;
 // otherwise it is flipped back. A flip takes its two faces over (CGAL's data structure reuses
@@ -710,8 +711,10 @@ void fair_seam(const Delaunay& triangulation, const std::vector<Eigen::Vector3f>
 // (a seam face on either side) were 85 with two rounds, 79 with three.
 constexpr int kCreaseRelaxRounds = 3;
 
-// Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where two
-// output faces still meet at a crease sharper than 60°, each corner of the two moves to the plane
+// Relaxes the creases that fairing and flipping left (fair_seam, flip_out_creases): where an
+// output face still meets another, or the kept triangle beyond a kept edge (Creases), at a crease
+// sharper than 60°, each corner of the two faces (of the output face and the kept edge's far
+// corner, where that is a seam vertex) moves to the plane
 // through the mean of its triangulation neighbours (no farther than max_edge) along its normal,
 // the full umbrella step that fair_seam takes half of, by at most `most`. It moves along the
 // layout's own line of sight (SeamLayout::depth_direction), so its place in the layout stays and

@@ -59,7 +59,8 @@ struct ReconstructOptions {
   //! them sideways in the seam's view by more than the pixel spacing); filtered depth is regular
   //! already, and a 3×3 mean (with the 5×5 plane that comes with any smoothing) takes out what
   //! is left of the noise: samba-4cam frames 0–39, true poses, folded edges 2.95 → 2.23 a frame
-  //! set, accuracy 1.098 → 1.102 mm (5×5: 2.10 folds, 1.110 mm; docs/design.md).
+  //! set, accuracy 1.098 → 1.102 mm (5×5: 2.10 folds, 1.110 mm; docs/design.md); 1.23 → 1.10
+  //! since the points at the creases left are dropped (clipping.cc, drop_crease_points).
   int seam_smoothing_px() const {
     if (zipper.seam_smoothing_px >= 0) return zipper.seam_smoothing_px;
     return bilateral ? 1 : 2;
