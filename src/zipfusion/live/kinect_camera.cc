@@ -79,7 +79,7 @@ struct Slot {
   // Event thread only.
   ColorImage color;
   bool has_color = false;
-  double color_time_s = 0;
+  std::uint32_t color_timestamp = 0;  // the device clock's, as depth's
   double last_depth_s = 0;
   double opened_s = 0;
   bool had_depth = false;
@@ -167,12 +167,12 @@ struct Context {
     slot.started = false;
   }
 
-  static void on_video(freenect_device* device, void* data, std::uint32_t) {
+  static void on_video(freenect_device* device, void* data, std::uint32_t timestamp) {
     Slot& slot = *static_cast<Slot*>(freenect_get_user(device));
     if (slot.stop_requested) return;
     slot.color.resize(slot.width, slot.height);
     std::memcpy(slot.color.data.data(), data, slot.color.data.size() * sizeof(Rgb8));
-    slot.color_time_s = now_s();
+    slot.color_timestamp = timestamp;
     slot.has_color = true;
   }
 
@@ -192,7 +192,7 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
   } else {
     std::memcpy(frame.depth.data.data(), data, static_cast<size_t>(n) * sizeof(std::uint16_t));
   }
-  frame.has_color = slot.has_color && frame.time_s - slot.color_time_s <= slot.max_color_age_s;
+  frame.has_color = slot.has_color && kinect_color_pairs_with_depth(slot.color_timestamp, timestamp, slot.max_color_age_s);
   if (frame.has_color) frame.color = slot.color;
   slot.last_depth_s = frame.time_s;
   slot.had_depth = true;
@@ -205,6 +205,16 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
   slot.queue.push_back(std::move(frame));
   slot.changed.notify_all();
 }
+
+}  // namespace
+
+bool kinect_color_pairs_with_depth(std::uint32_t color_timestamp, std::uint32_t depth_timestamp, double max_age_s) {
+  // The difference modulo 2^32, read as signed: right across the clock's wrap every 71.6 s.
+  const auto ticks_apart = static_cast<std::int32_t>(depth_timestamp - color_timestamp);
+  return std::abs(static_cast<double>(ticks_apart)) <= max_age_s * kKinectClockHz;
+}
+
+namespace {
 
 class KinectCamera final : public LiveCamera {
  public:
