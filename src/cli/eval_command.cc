@@ -60,7 +60,7 @@ fs::path reconstruction_path(const fs::path& dir, int frame) {
 struct MeanQuality {
   double triangles = 0, accuracy_mean_mm = 0, accuracy_p95_mm = 0, completeness = 0, area_ratio = 0;
   double reconstruction_area_m2 = 0, observed_true_area_m2 = 0, components = 0, large_components = 0;
-  double non_manifold_edges = 0, folded_edges = 0, color_error = 0;
+  double non_manifold_edges = 0, folded_edges = 0, doubled_triangles = 0, color_error = 0;
 };
 
 MeanQuality mean_quality(const std::vector<FrameQuality>& frames) {
@@ -86,6 +86,7 @@ MeanQuality mean_quality(const std::vector<FrameQuality>& frames) {
           .large_components = mean(&FrameQuality::large_components),
           .non_manifold_edges = mean(&FrameQuality::non_manifold_edges),
           .folded_edges = mean(&FrameQuality::folded_edges),
+          .doubled_triangles = mean(&FrameQuality::doubled_triangles),
           .color_error = mean(&FrameQuality::color_error)};
 }
 
@@ -161,6 +162,7 @@ void run_eval(EvalArgs& args) {
                                {"large_components", q.large_components},
                                {"non_manifold_edges", q.non_manifold_edges},
                                {"folded_edges", q.folded_edges},
+                               {"doubled_triangles", q.doubled_triangles},
                                {"color_error", number(q.color_error)},
                                {"color_vertices", q.color_vertices}});
     }
@@ -176,6 +178,7 @@ void run_eval(EvalArgs& args) {
                    {"large_components", number(mean.large_components)},
                    {"non_manifold_edges", number(mean.non_manifold_edges)},
                    {"folded_edges", number(mean.folded_edges)},
+                   {"doubled_triangles", number(mean.doubled_triangles)},
                    {"color_error", number(mean.color_error)}};
     out["missing_frames"] = missing;
     std::cout << out.dump(2) << "\n";
@@ -187,22 +190,22 @@ void run_eval(EvalArgs& args) {
   std::cout << "reconstructions  " << args.recon_dir << ": " << frames.size() << " of " << range.end - range.begin << " frames\n";
   std::cout << format("observed         true surface seen by a camera within %.2f-%.2f m (depth tolerance %g mm); covered within %g mm\n",
                       options.min_range_m, options.max_range_m, args.visibility_mm, args.completeness_mm);
-  std::cout << format("\n%6s %9s %9s %9s %9s %6s %12s %9s %7s %7s\n", "", "", "accuracy", "(mm)", "complete", "area", "components", "non-man.",
-                      "folded", "colour");
-  std::cout << format("%6s %9s %9s %9s %9s %6s %12s %9s %7s %7s\n", "frame", "triangles", "mean", "p95", "%", "ratio", "(large)", "edges", "edges",
-                      "error");
+  std::cout << format("\n%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "", "", "accuracy", "(mm)", "complete", "area", "components", "non-man.",
+                      "folded", "doubled", "colour");
+  std::cout << format("%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "frame", "triangles", "mean", "p95", "%", "ratio", "(large)", "edges", "edges",
+                      "triangles", "error");
   for (size_t i = 0; i < frames.size(); ++i) {
     const FrameQuality& q = results[i];
-    std::cout << format("%6d %9d %9s %9s %9s %6s %12s %9d %7d %7s\n", frames[i], q.triangles, cell("%.2f", q.accuracy_mean_mm).c_str(),
+    std::cout << format("%6d %9d %9s %9s %9s %6s %12s %9d %7d %9d %7s\n", frames[i], q.triangles, cell("%.2f", q.accuracy_mean_mm).c_str(),
                         cell("%.2f", q.accuracy_p95_mm).c_str(), cell("%.1f", 100 * q.completeness).c_str(), cell("%.2f", q.area_ratio).c_str(),
                         format("%d (%d)", q.components, q.large_components).c_str(), q.non_manifold_edges, q.folded_edges,
-                        cell("%.1f", q.color_error).c_str());
+                        q.doubled_triangles, cell("%.1f", q.color_error).c_str());
   }
-  std::cout << format("%6s %9s %9s %9s %9s %6s %12s %9s %7s %7s\n", "mean", cell("%.0f", mean.triangles).c_str(),
+  std::cout << format("%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "mean", cell("%.0f", mean.triangles).c_str(),
                       cell("%.2f", mean.accuracy_mean_mm).c_str(), cell("%.2f", mean.accuracy_p95_mm).c_str(),
                       cell("%.1f", 100 * mean.completeness).c_str(), cell("%.2f", mean.area_ratio).c_str(),
                       format("%.1f (%.1f)", mean.components, mean.large_components).c_str(), cell("%.1f", mean.non_manifold_edges).c_str(),
-                      cell("%.1f", mean.folded_edges).c_str(), cell("%.1f", mean.color_error).c_str());
+                      cell("%.1f", mean.folded_edges).c_str(), cell("%.1f", mean.doubled_triangles).c_str(), cell("%.1f", mean.color_error).c_str());
   if (!missing.empty()) {
     std::string list;
     for (size_t i = 0; i < missing.size() && i < 20; ++i) list += (i ? ", " : "") + std::to_string(missing[i]);

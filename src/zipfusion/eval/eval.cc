@@ -1,6 +1,7 @@
 #include "zipfusion/eval/eval.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -193,6 +194,19 @@ int count_non_manifold_edges(const TriangleMesh& mesh) {
   return count;
 }
 
+int count_doubled_triangles(const TriangleMesh& mesh) {
+  std::vector<std::array<int, 3>> corners;
+  corners.reserve(mesh.triangles.size());
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    std::array<int, 3> sorted{t[0], t[1], t[2]};
+    std::sort(sorted.begin(), sorted.end());
+    corners.push_back(sorted);
+  }
+  std::sort(corners.begin(), corners.end());
+  return static_cast<int>(corners.end() - std::unique(corners.begin(), corners.end()));
+}
+
 int count_folded_edges(const TriangleMesh& mesh) {
   // Each directed edge as (undirected key, triangle and whether it runs from the lower index).
   struct EdgeUse {
@@ -254,6 +268,7 @@ FrameQuality evaluate_frame(const TriangleMesh& reconstruction, const TriangleMe
                                                       [&](int n) { return n >= options.min_component_triangles; }));
   q.non_manifold_edges = count_non_manifold_edges(recon);
   q.folded_edges = count_folded_edges(recon);
+  q.doubled_triangles = count_doubled_triangles(recon);
 
   // --- Distance structures and the truth as each camera sees it, built side by side -------------
   const int cameras = static_cast<int>(true_rig.cameras.size());

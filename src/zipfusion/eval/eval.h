@@ -60,6 +60,7 @@ struct FrameQuality {
   int large_components = 0;      // ... with at least min_component_triangles triangles
   int non_manifold_edges = 0;    // edges (vertex-index pairs) shared by more than two triangles
   int folded_edges = 0;          // edges where the surface folds back on itself (count_folded_edges)
+  int doubled_triangles = 0;     // triangles on the vertices of an earlier one (count_doubled_triangles)
   double color_error = 0;        // mean |vertex colour − true colour| per channel, 8-bit levels, over the vertices
                                  // within color_max_distance_m of the truth (true colour interpolated
                                  // barycentrically on the closest true triangle); NaN if either mesh has no
@@ -97,6 +98,11 @@ int count_non_manifold_edges(const TriangleMesh& mesh);
 //! camera's pixel spacing does not. Triangles that repeat a vertex index or have no area are
 //! skipped.
 int count_folded_edges(const TriangleMesh& mesh);
+
+//! Triangles on the same three vertex indices as an earlier triangle, in either orientation: a
+//! surface doubled onto itself (turned over, every edge of the pair folds; the same way round,
+//! every edge is shared twice by one side). Triangles that repeat a vertex index are skipped.
+int count_doubled_triangles(const TriangleMesh& mesh);
 
 //! Total triangle area, square metres.
 double surface_area(const TriangleMesh& mesh);

@@ -236,6 +236,31 @@ TEST(Eval, FoldedEdges) {
   EXPECT_EQ(evaluate_frame(folded, square(0), one_camera_rig(), std::nullopt).folded_edges, 1);
 }
 
+TEST(Eval, DoubledTriangles) {
+  TriangleMesh mesh = grid_square(0, 0.1, 0, 0.1, 0, 4);  // 32 triangles, none doubled
+  EXPECT_EQ(count_doubled_triangles(mesh), 0);
+  const Eigen::Vector3i first = mesh.triangles[0], fifth = mesh.triangles[4];
+  mesh.triangles.emplace_back(first[0], first[2], first[1]);  // turned over
+  EXPECT_EQ(count_doubled_triangles(mesh), 1);
+  mesh.triangles.emplace_back(fifth[1], fifth[2], fifth[0]);  // the same way round, rotated
+  mesh.triangles.emplace_back(first[2], first[1], first[0]);  // a third on the first's corners
+  EXPECT_EQ(count_doubled_triangles(mesh), 3);
+  mesh.triangles.emplace_back(first[0], first[0], first[1]);  // repeats a vertex: skipped
+  mesh.triangles.emplace_back(first[0], first[1], first[1]);
+  EXPECT_EQ(count_doubled_triangles(mesh), 3);
+  // Two triangles on the same positions but their own vertices are not doubled by index.
+  const TriangleMesh twins = [] {
+    TriangleMesh m = grid_square(0, 0.1, 0, 0.1, 0, 1);
+    m.append(grid_square(0, 0.1, 0, 0.1, 0, 1));
+    return m;
+  }();
+  EXPECT_EQ(count_doubled_triangles(twins), 0);
+  // evaluate_frame reports the count.
+  TriangleMesh doubled = square(0);
+  doubled.triangles.emplace_back(doubled.triangles[1][0], doubled.triangles[1][2], doubled.triangles[1][1]);
+  EXPECT_EQ(evaluate_frame(doubled, square(0), one_camera_rig(), std::nullopt).doubled_triangles, 1);
+}
+
 TEST(Eval, ConnectedComponentsLabelTriangles) {
   TriangleMesh mesh = grid_square(0, 0.1, 0, 0.1, 0, 2);  // 8 triangles
   mesh.append(grid_square(1, 1.1, 0, 0.1, 0, 1));         // 2 triangles

@@ -1093,9 +1093,35 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const float max_edge2 = options.max_edge * options.max_edge;
   FairingScratch fairing;
   fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat, fairing);
+  // The kept triangles whose three corners are all seam vertices, each as its sorted corners: the
+  // triangulation has a face on exactly those corners (its three edges are constraints), which
+  // would double the kept triangle. covered_by_triangle below misses it where the seam has moved
+  // the corners so far that the centroid projects beside the triangle's cell (samba-4cam frame 31
+  // filtered: one such face, turned over against its kept twin).
+  // Their corners are flagged, so that most faces are cleared by three loads (the output test
+  // runs for every face the flips, the relaxation and the dropping touch).
+  std::vector<std::array<int, 3>> kept_triangles;
+  std::vector<std::uint8_t> kept_triangle_corner(seam.vertices.size(), 0);
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    const int third = taken.kept_sides[k].third_vertex;
+    if (third < 0) continue;
+    std::array<int, 3> corners{constraints[k].first, constraints[k].second, third};
+    for (const int i : corners) kept_triangle_corner[i] = 1;
+    std::sort(corners.begin(), corners.end());
+    kept_triangles.push_back(corners);
+  }
+  std::sort(kept_triangles.begin(), kept_triangles.end());
+  kept_triangles.erase(std::unique(kept_triangles.begin(), kept_triangles.end()), kept_triangles.end());
+  auto is_kept_triangle = [&](int i0, int i1, int i2) {
+    if (!(kept_triangle_corner[i0] & kept_triangle_corner[i1] & kept_triangle_corner[i2])) return false;
+    std::array<int, 3> corners{i0, i1, i2};
+    std::sort(corners.begin(), corners.end());
+    return std::binary_search(kept_triangles.begin(), kept_triangles.end(), corners);
+  };
   // Is the seam triangle of these vertices output? Not with an edge longer than max_edge, nor over
   // a kept triangle of either mesh (the seam would double the surface there).
   auto output = [&](int i0, int i1, int i2) {
+    if (is_kept_triangle(i0, i1, i2)) return false;
     const Eigen::Vector3f &p0 = positions[i0], &p1 = positions[i1], &p2 = positions[i2];
     if ((p0 - p1).squaredNorm() > max_edge2 || (p1 - p2).squaredNorm() > max_edge2 || (p0 - p2).squaredNorm() > max_edge2) return false;
     const Eigen::Vector3f centroid = (p0 + p1 + p2) / 3.0f;

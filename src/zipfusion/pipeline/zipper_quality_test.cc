@@ -33,6 +33,7 @@ struct ModeQuality {
   int large_components = 0;
   int non_manifold_edges = 0;
   int folded_edges = 0;
+  int doubled_triangles = 0;
   int min_cameras_used = 1 << 30;
   int max_cameras_used = 0;
   double triangles = 0;
@@ -120,6 +121,7 @@ CaseQuality measure(const CaseSpec& spec) {
       m.large_components = std::max(m.large_components, q.large_components);
       m.non_manifold_edges = std::max(m.non_manifold_edges, q.non_manifold_edges);
       m.folded_edges = std::max(m.folded_edges, q.folded_edges);
+      m.doubled_triangles = std::max(m.doubled_triangles, q.doubled_triangles);
       m.min_cameras_used = std::min(m.min_cameras_used, frame_result.cameras_used);
       m.max_cameras_used = std::max(m.max_cameras_used, frame_result.cameras_used);
 
@@ -170,6 +172,7 @@ TEST(ZipperQuality, NoiseFreeFourCameras) {
   EXPECT_GE(q.zipper.completeness, 0.95);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  EXPECT_EQ(q.zipper.doubled_triangles, 0);
   // The seams add hardly a fold to those of the cameras' own meshes (15 at silhouettes): 11 with
   // the seam's points moved halfway between the layers, faired and the creases left relaxed (12
   // with every relaxed point held within 0.35 pixel of its pixel, 13 before the relaxation, 18
@@ -194,6 +197,7 @@ void expect_noisy_ring_targets(int cameras) {
   EXPECT_LE(q.zipper_area_m2, q.separate_area_m2 - 0.65 * q.redundant_area_m2);
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  EXPECT_EQ(q.zipper.doubled_triangles, 0);
   // Folds: the zipper has fewer than the separate meshes (6 cameras: 24 against 72, 26 before the
   // seams weighed creases against the kept triangles and dropped the points at those left, 28 with
   // the filtered seams' points as measured (--seam-smoothing 0), 34 before the creases left were
@@ -232,6 +236,7 @@ TEST(ZipperQuality, UnfilteredSmoothnessOwnershipKeepsTheSmootherLayer) {
   EXPECT_GE(smooth.zipper.completeness, 0.95);
   EXPECT_LE(smooth.zipper.large_components, 3);
   EXPECT_EQ(smooth.zipper.non_manifold_edges, 0);
+  EXPECT_EQ(smooth.zipper.doubled_triangles, 0);
 }
 
 // A dead camera leaves a gap in the coverage, not in the connectivity: the three cameras that
@@ -241,6 +246,7 @@ TEST(ZipperQuality, DeadCameraIsLeftOut) {
   const CaseQuality q = measure({.name = "4cam cam2 dead", .synth = ring(4), .bilateral = true, .dead_camera = 2});
   EXPECT_LE(q.zipper.large_components, 3);
   EXPECT_EQ(q.zipper.non_manifold_edges, 0);
+  EXPECT_EQ(q.zipper.doubled_triangles, 0);
   EXPECT_EQ(q.zipper.min_cameras_used, 3);
   EXPECT_EQ(q.zipper.max_cameras_used, 3);
   EXPECT_LE(q.zipper.folded_edges, q.separate.folded_edges);  // 14 against 30 (17 before the creases were relaxed, 27 before the seam was faired)
