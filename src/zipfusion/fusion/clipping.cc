@@ -142,7 +142,7 @@ void take_triangles(const MeshView& view, const MeshView& other, float distance,
 // a second time, can be split again at a slightly different point (one seam triangle of 12 000
 // differed on samba-4cam frame 20 when edges shared by two kept triangles came twice).
 void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex, int end_vertex, const Seam& seam,
-                    std::vector<std::pair<int, int>>& edges, std::vector<KeptSide>& sides) {
+                    std::vector<std::pair<int, int>>& edges, std::vector<KeptSide>& sides, std::vector<std::array<int, 3>>& kept_triangles) {
   const DepthMesh& mesh = *view.mesh;
   const int width = mesh.width;
   auto seam_vertex = [&](int pixel) {
@@ -181,6 +181,11 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
       const int j = seam_vertex(edge.other);
       if (j <= index) continue;
       edges.emplace_back(index, j);
+      // A kept triangle with every corner in the seam is found from its edge of lowest index.
+      for (const Side& side : edge.sides) {
+        const int third = side.kept ? seam_vertex(side.third) : -1;
+        if (third > j) kept_triangles.push_back({index, j, third});
+      }
       // Where both sides are kept the edge is inside the kept mesh: no seam face borders it.
       if (edge.sides[0].kept && edge.sides[1].kept) {
         sides.push_back({});
@@ -419,6 +424,13 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
     const Eigen::Vector2f &flat_w = flat[w->info().index], &flat_x = flat[x->info().index];
     const double side_u = signed_area2(flat_w, flat_x, flat[u->info().index]), side_v = signed_area2(flat_w, flat_x, flat[v->info().index]);
     if (!same_orientation(side_u, -side_v)) continue;
+    // Convex where CGAL has the points too: fairing and relaxing move the layout (flat), not
+    // CGAL's points, and a flip across a quadrilateral that is concave there leaves CGAL an
+    // invalid triangulation, in which removing a point (drop_crease_points) crashed or never
+    // ended (a synthetic 1280x960 ring, frame 8).
+    const CGAL::Orientation cgal_side_u = triangulation.orientation(w->point(), x->point(), u->point());
+    const CGAL::Orientation cgal_side_v = triangulation.orientation(w->point(), x->point(), v->point());
+    if (cgal_side_u == CGAL::COLLINEAR || cgal_side_u != -cgal_side_v) continue;
     if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
     triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
     set_face_info(f, positions, output);
@@ -980,8 +992,8 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
   take_triangles(a, b, options.ownership_distance, scratch_a, seam);
   const int a_end = static_cast<int>(seam.vertices.size());
   take_triangles(b, a, options.ownership_distance, scratch_b, seam);
-  add_kept_edges(a, scratch_a, 0, a_end, seam, taken.constraints, taken.kept_sides);
-  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints, taken.kept_sides);
+  add_kept_edges(a, scratch_a, 0, a_end, seam, taken.constraints, taken.kept_sides, taken.kept_triangles);
+  add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints, taken.kept_sides, taken.kept_triangles);
   clear_pixel_marks(a, scratch_a);
   clear_pixel_marks(b, scratch_b);
   taken.taken_a = scratch_a.taken;
@@ -1093,25 +1105,26 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const float max_edge2 = options.max_edge * options.max_edge;
   FairingScratch fairing;
   fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat, fairing);
-  // The kept triangles whose three corners are all seam vertices, each as its sorted corners: the
-  // triangulation has a face on exactly those corners (its three edges are constraints), which
-  // would double the kept triangle. covered_by_triangle below misses it where the seam has moved
-  // the corners so far that the centroid projects beside the triangle's cell (samba-4cam frame 31
-  // filtered: one such face, turned over against its kept twin).
-  // Their corners are flagged, so that most faces are cleared by three loads (the output test
-  // runs for every face the flips, the relaxation and the dropping touch).
+  // The kept triangles whose three corners are all seam vertices (take_seam lists them), each as
+  // its sorted corners: the triangulation has a face on exactly those corners (its three edges
+  // are constraints), which would double the kept triangle. covered_by_triangle below misses it
+  // where the seam has moved the corners so far that the centroid projects beside the triangle's
+  // cell (samba-4cam frame 31 filtered: one such face, turned over against its kept twin). The
+  // corners are taken as the triangulation numbers them (a point at the 2-D position of an
+  // earlier one has that one's index), and flagged, so that most faces are cleared by three
+  // loads (the output test runs for every face the flips, the relaxation and the dropping touch).
   std::vector<std::array<int, 3>> kept_triangles;
   std::vector<std::uint8_t> kept_triangle_corner(seam.vertices.size(), 0);
-  for (size_t k = 0; k < constraints.size(); ++k) {
-    const int third = taken.kept_sides[k].third_vertex;
-    if (third < 0) continue;
-    std::array<int, 3> corners{constraints[k].first, constraints[k].second, third};
-    for (const int i : corners) kept_triangle_corner[i] = 1;
+  for (const std::array<int, 3>& triangle : taken.kept_triangles) {
+    std::array<int, 3> corners;
+    for (int k = 0; k < 3; ++k) {
+      corners[k] = handle[triangle[k]]->info().index;
+      kept_triangle_corner[corners[k]] = 1;
+    }
     std::sort(corners.begin(), corners.end());
     kept_triangles.push_back(corners);
   }
   std::sort(kept_triangles.begin(), kept_triangles.end());
-  kept_triangles.erase(std::unique(kept_triangles.begin(), kept_triangles.end()), kept_triangles.end());
   auto is_kept_triangle = [&](int i0, int i1, int i2) {
     if (!(kept_triangle_corner[i0] & kept_triangle_corner[i1] & kept_triangle_corner[i2])) return false;
     std::array<int, 3> corners{i0, i1, i2};

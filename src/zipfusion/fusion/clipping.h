@@ -28,6 +28,7 @@
 //! leaves the triangulation. A crease between a seam face and the kept triangle beyond a kept
 //! edge counts as one between two seam faces (docs/design.md).
 
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <vector>
@@ -176,6 +177,7 @@ struct TakenSeam {
   Seam seam;                                      // vertices and triangles_taken; no triangles yet
   std::vector<std::pair<int, int>> constraints;   // the kept edges between seam vertices
   std::vector<KeptSide> kept_sides;               // per constraint: the kept triangle beside it
+  std::vector<std::array<int, 3>> kept_triangles; // kept triangles whose corners are all seam vertices (their indices, each triangle once)
   std::vector<int> taken_a, taken_b;              // triangle ids taken out of each mesh
   // Per vertex of the seam: whether another seam has its pixel as a vertex too. Such a point keeps
   // its own place (the seams would move it towards different cameras' surfaces, and the output
