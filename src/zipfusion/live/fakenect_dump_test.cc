@@ -218,17 +218,27 @@ TEST_F(FakenectDump, PlayableEntriesEndAtTheFirstMissingOrShortFile) {
   EXPECT_EQ(problem, (dir_ / index[2].file).string() + ": missing");
 }
 
-TEST_F(FakenectDump, ColourOlderThanItsAgeLimitIsNotPaired) {
-  // Depth 0.1 s after the only colour: no colour for it.
-  const FakenectIndexEntry color{.type = 'r', .time_s = 10.0, .timestamp = 1, .file = fakenect_file_name('r', 10.0, 1)};
-  const FakenectIndexEntry depth{.type = 'd', .time_s = 10.1, .timestamp = 2, .file = fakenect_file_name('d', 10.1, 2)};
-  write_fakenect_file(dir_, color, encode_fakenect_rgb(pattern_rgb(0)));
-  write_fakenect_file(dir_, depth, encode_fakenect_depth(ramp_raw(0)));
-  write_fakenect_index(dir_, {color, depth});
-  ReplayCamera camera(dir_, "cam0");
-  LiveFrame frame;
-  ASSERT_EQ(camera.read(frame, 0), ReadStatus::kFrame);
-  EXPECT_FALSE(frame.has_color);
+TEST_F(FakenectDump, ColourIsPairedByTheDevicesClock) {
+  // The only colour, then depth the device stamped `ticks` later (60 MHz) and the host wrote down
+  // `host_s` later: paired by the device's stamps alone, within 40 ms.
+  auto paired = [&](std::uint32_t ticks, double host_s) {
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    const FakenectIndexEntry color{.type = 'r', .time_s = 10.0, .timestamp = 1000, .file = fakenect_file_name('r', 10.0, 1000)};
+    const FakenectIndexEntry depth{.type = 'd', .time_s = 10.0 + host_s, .timestamp = 1000 + ticks,
+                                   .file = fakenect_file_name('d', 10.0 + host_s, 1000 + ticks)};
+    write_fakenect_file(dir_, color, encode_fakenect_rgb(pattern_rgb(0)));
+    write_fakenect_file(dir_, depth, encode_fakenect_depth(ramp_raw(0)));
+    write_fakenect_index(dir_, {color, depth});
+    ReplayCamera camera(dir_, "cam0");
+    LiveFrame frame;
+    EXPECT_EQ(camera.read(frame, 0), ReadStatus::kFrame);
+    return frame.has_color;
+  };
+  EXPECT_FALSE(paired(6000000, 0.001));  // 0.1 s apart on the device, 1 ms apart on the host
+  EXPECT_TRUE(paired(60000, 0.1));       // 1 ms apart on the device, 0.1 s on a busy host
+  EXPECT_TRUE(paired(2399999, 0.04));
+  EXPECT_FALSE(paired(2400001, 0.04));
 }
 
 TEST_F(FakenectDump, StopEndsTheReplay) {

@@ -17,6 +17,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/live/fakenect_dump.h"
+#include "zipfusion/live/kinect_clock.h"
 #include "zipfusion/live/kinect_disparity.h"
 
 namespace zipfusion {
@@ -205,16 +206,6 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
   slot.queue.push_back(std::move(frame));
   slot.changed.notify_all();
 }
-
-}  // namespace
-
-bool kinect_color_pairs_with_depth(std::uint32_t color_timestamp, std::uint32_t depth_timestamp, double max_age_s) {
-  // The difference modulo 2^32, read as signed: right across the clock's wrap every 71.6 s.
-  const auto ticks_apart = static_cast<std::int32_t>(depth_timestamp - color_timestamp);
-  return std::abs(static_cast<double>(ticks_apart)) <= max_age_s * kKinectClockHz;
-}
-
-namespace {
 
 class KinectCamera final : public LiveCamera {
  public:

@@ -20,9 +20,8 @@
 //!
 //! Timestamps: time_s is the host's steady clock when libfreenect handed the depth frame over (the
 //! devices' own clocks are not shared); device_timestamp is libfreenect's. Each depth frame
-//! carries the newest colour frame received, where the device stamped the two at most
-//! max_color_age_s apart (kinect_color_pairs_with_depth): one device's depth and colour stamps
-//! share its 60 MHz clock, while the host's arrival times stretch when the machine is busy.
+//! carries the newest colour frame received if the device stamped the two at most
+//! max_color_age_s apart (kinect_color_pairs_with_depth, kinect_clock.h), and no colour otherwise.
 //!
 //! End of a stream: a camera without a depth frame for stall_timeout_s (start_timeout_s before its
 //! first) is taken as unplugged and ends; the others go on. When libfreenect's event processing
@@ -31,7 +30,6 @@
 //! Thread safety: as LiveCamera; the cameras of one open_kinect_cameras() call share a context,
 //! which lives until the last of them is destroyed.
 
-#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -56,12 +54,6 @@ struct KinectOptions {
 
   void validate() const;  // throws InvalidInput naming the field
 };
-
-inline constexpr double kKinectClockHz = 60e6;  // a Kinect v1's depth and colour timestamps count this clock
-
-//! Whether colour stamped `color_timestamp` pairs with depth stamped `depth_timestamp` (one
-//! device's clock, wrapping at 2^32): at most max_age_s apart, either way round.
-bool kinect_color_pairs_with_depth(std::uint32_t color_timestamp, std::uint32_t depth_timestamp, double max_age_s);
 
 struct KinectDevice {
   int index = 0;

@@ -27,7 +27,7 @@ struct LiveFrame {
   std::uint32_t device_timestamp = 0;  // the device's own frame counter/clock (libfreenect's timestamp), as delivered
   DepthImage depth;                  // millimetres along the optical axis, 0 = no measurement
   bool has_color = false;
-  ColorImage color;                  // RGB, the colour camera's image nearest in time to the depth
+  ColorImage color;                  // RGB, the colour camera's image nearest in time to the depth (by the device's clock where it stamps both)
 };
 
 enum class ReadStatus {

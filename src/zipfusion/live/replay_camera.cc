@@ -2,6 +2,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/live/kinect_clock.h"
 #include "zipfusion/live/kinect_disparity.h"
 
 namespace zipfusion {
@@ -38,7 +39,7 @@ ReadStatus ReplayCamera::read(LiveFrame& frame, double /*timeout_s: reading neve
       const std::vector<std::uint8_t> bytes = read_file_bytes(file);
       if (entry.type == 'r') {
         color_ = decode_fakenect_rgb(bytes, file.string());
-        color_time_s_ = entry.time_s;
+        color_timestamp_ = entry.timestamp;
         has_color_ = true;
         continue;
       }
@@ -47,7 +48,7 @@ ReadStatus ReplayCamera::read(LiveFrame& frame, double /*timeout_s: reading neve
       frame.device_timestamp = entry.timestamp;
       frame.depth.resize(raw.width, raw.height);
       kinect_raw_frame_to_mm(static_cast<int>(raw.size()), raw.data.data(), frame.depth.data.data());
-      frame.has_color = has_color_ && entry.time_s - color_time_s_ <= options_.max_color_age_s && entry.time_s >= color_time_s_;
+      frame.has_color = has_color_ && kinect_color_pairs_with_depth(color_timestamp_, entry.timestamp, options_.max_color_age_s);
       if (frame.has_color) frame.color = color_;
       return ReadStatus::kFrame;
     } catch (const std::exception& e) {

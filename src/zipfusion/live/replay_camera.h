@@ -6,12 +6,14 @@
 //! time_s is the dump's <seconds>.
 //!
 //! Depth is converted from raw 11-bit values by kinect_raw_to_mm (kinect_disparity.h); each
-//! depth frame is paired with the latest colour frame before it when that one is at most
-//! `max_color_age_s` older. A file that is missing, truncated or malformed ends the stream there
+//! depth frame is paired with the latest colour frame before it in INDEX.txt when the device
+//! stamped the two at most `max_color_age_s` apart (kinect_color_pairs_with_depth), as a live
+//! KinectCamera pairs them. A file that is missing, truncated or malformed ends the stream there
 //! (end_reason() names it), as a recording cut off by an unplugged device or a crash would.
 //! The model is kinect_v1_default_model(). Thread safety: as LiveCamera.
 
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <mutex>
 #include <string>
@@ -24,7 +26,7 @@ namespace zipfusion {
 
 struct ReplayOptions {
   double fps = 30;                // nominal frame rate of the recording
-  double max_color_age_s = 0.04;  // colour this much older than the depth still pairs with it, seconds
+  double max_color_age_s = 0.04;  // colour stamped at most this far from the depth (the device clock) pairs with it, seconds
 
   void validate() const;  // throws InvalidInput naming the field
 };
@@ -50,7 +52,7 @@ class ReplayCamera final : public LiveCamera {
   size_t next_ = 0;
   bool has_color_ = false;
   ColorImage color_;
-  double color_time_s_ = 0;
+  std::uint32_t color_timestamp_ = 0;
   std::atomic<bool> stopped_{false};
   mutable std::mutex mutex_;  // guards end_reason_
   std::string end_reason_;
