@@ -29,7 +29,8 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   const fs::path capture = dir_ / "cap";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 3 --cameras 3 --noise none").exit_code, 0);
   // Frame 0: the true surface with colours 10 levels darker (the true colours are all >= 16);
-  // frame 1: the truth 5 mm higher, as OBJ; frame 2: none.
+  // frame 1: the truth 5 mm higher, as OBJ, with two of its triangles laid again turned over;
+  // frame 2: none.
   const fs::path recon = dir_ / "recon";
   fs::create_directories(recon);
   TriangleMesh darker = read_mesh(capture / "ground_truth" / "mesh" / "000000.ply");
@@ -37,6 +38,7 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   write_mesh(recon / "000000.ply", darker);
   TriangleMesh moved = read_mesh(capture / "ground_truth" / "mesh" / "000001.ply");
   for (Eigen::Vector3f& p : moved.positions) p.z() += 0.005f;
+  for (int t : {0, 1}) moved.triangles.emplace_back(moved.triangles[t][0], moved.triangles[t][2], moved.triangles[t][1]);
   write_mesh(recon / "000001.obj", moved);
 
   const CommandResult json_run = run("eval " + capture.string() + " " + recon.string() + " --json --threads 2");
@@ -50,10 +52,13 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   EXPECT_DOUBLE_EQ(exact["completeness"].get<double>(), 1.0);
   EXPECT_NEAR(exact["color_error"].get<double>(), 10.0, 0.01);
   EXPECT_EQ(exact["non_manifold_edges"], 0);
+  EXPECT_EQ(exact["doubled_triangles"], 0);
   EXPECT_EQ(exact["components"], 18);  // the built-in human's closed parts
   EXPECT_GT(exact["area_ratio"].get<double>(), 1.0);  // some of the truth is hidden from all cameras
   const auto& shifted = j["frames"][1];
   EXPECT_EQ(shifted["file"], "000001.obj");
+  EXPECT_EQ(shifted["doubled_triangles"], 2);
+  EXPECT_DOUBLE_EQ(j["mean"]["doubled_triangles"].get<double>(), 1.0);
   EXPECT_GT(shifted["accuracy_mean_mm"].get<double>(), 1.0);  // 5 mm up: 0 on vertical surfaces, 5 on horizontal ones
   EXPECT_GT(shifted["accuracy_p95_mm"].get<double>(), 4.0);
   EXPECT_LT(shifted["accuracy_mean_mm"].get<double>(), 5.0);

@@ -100,8 +100,9 @@ int count_non_manifold_edges(const TriangleMesh& mesh);
 int count_folded_edges(const TriangleMesh& mesh);
 
 //! Triangles on the same three vertex indices as an earlier triangle, in either orientation: a
-//! surface doubled onto itself (turned over, every edge of the pair folds; the same way round,
-//! every edge is shared twice by one side). Triangles that repeat a vertex index are skipped.
+//! surface doubled onto itself (turned over, where nothing else borders them, every edge of the
+//! pair folds; the same way round, every edge is shared twice by one side). Triangles that
+//! repeat a vertex index are skipped.
 int count_doubled_triangles(const TriangleMesh& mesh);
 
 //! Total triangle area, square metres.

@@ -245,8 +245,8 @@ TEST(Eval, DoubledTriangles) {
   mesh.triangles.emplace_back(fifth[1], fifth[2], fifth[0]);  // the same way round, rotated
   mesh.triangles.emplace_back(first[2], first[1], first[0]);  // a third on the first's corners
   EXPECT_EQ(count_doubled_triangles(mesh), 3);
-  mesh.triangles.emplace_back(first[0], first[0], first[1]);  // repeats a vertex: skipped
-  mesh.triangles.emplace_back(first[0], first[1], first[1]);
+  mesh.triangles.emplace_back(first[0], first[0], first[1]);  // repeats a vertex: skipped, twice over
+  mesh.triangles.emplace_back(first[0], first[0], first[1]);
   EXPECT_EQ(count_doubled_triangles(mesh), 3);
   // Two triangles on the same positions but their own vertices are not doubled by index.
   const TriangleMesh twins = [] {
