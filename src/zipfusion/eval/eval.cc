@@ -171,13 +171,16 @@ namespace {
 // The undirected edge (a, b) as one sortable key, the same for (b, a).
 std::uint64_t undirected_edge_key(std::uint32_t a, std::uint32_t b) { return static_cast<std::uint64_t>(std::min(a, b)) << 32 | std::max(a, b); }
 
+// A triangle that names one vertex twice: no area, no edges of its own; the counts skip it.
+bool repeats_a_vertex(const Eigen::Vector3i& t) { return t[0] == t[1] || t[1] == t[2] || t[2] == t[0]; }
+
 }  // namespace
 
 int count_non_manifold_edges(const TriangleMesh& mesh) {
   std::vector<std::uint64_t> edges;
   edges.reserve(3 * mesh.triangles.size());
   for (const Eigen::Vector3i& t : mesh.triangles) {
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    if (repeats_a_vertex(t)) continue;
     for (int k = 0; k < 3; ++k) {
       const auto a = static_cast<std::uint32_t>(t[k]), b = static_cast<std::uint32_t>(t[(k + 1) % 3]);
       edges.push_back(undirected_edge_key(a, b));
@@ -198,7 +201,7 @@ int count_doubled_triangles(const TriangleMesh& mesh) {
   std::vector<std::array<int, 3>> corners;
   corners.reserve(mesh.triangles.size());
   for (const Eigen::Vector3i& t : mesh.triangles) {
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    if (repeats_a_vertex(t)) continue;
     std::array<int, 3> sorted{t[0], t[1], t[2]};
     std::sort(sorted.begin(), sorted.end());
     corners.push_back(sorted);
@@ -219,7 +222,7 @@ int count_folded_edges(const TriangleMesh& mesh) {
   std::vector<Eigen::Vector3f> normals(mesh.triangles.size());
   for (size_t i = 0; i < mesh.triangles.size(); ++i) {
     const Eigen::Vector3i& t = mesh.triangles[i];
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    if (repeats_a_vertex(t)) continue;
     const Eigen::Vector3f& a = mesh.positions[t[0]];
     normals[i] = (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a);
     if (!(normals[i].squaredNorm() > 0)) continue;

@@ -181,7 +181,8 @@ void add_kept_edges(const MeshView& view, const SeamScratch& s, int first_vertex
       const int j = seam_vertex(edge.other);
       if (j <= index) continue;
       edges.emplace_back(index, j);
-      // A kept triangle with every corner in the seam is found from its edge of lowest index.
+      // A kept triangle with every corner in the seam is listed once: from the edge between its two
+      // lowest seam indices, with the third corner the highest.
       for (const Side& side : edge.sides) {
         const int third = side.kept ? seam_vertex(side.third) : -1;
         if (third > j) kept_triangles.push_back({index, j, third});
