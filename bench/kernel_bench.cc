@@ -69,7 +69,7 @@ BENCHMARK(BM_LookupColors)->Unit(benchmark::kMillisecond);
 void BM_BorderDistance(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh coarse;
-  downsample_mesh(f.meshes[0], 1, 0.03f, coarse);
+  downsample_mesh(f.meshes[0], 1, depth_jump(SdcOptions{}), coarse);
   OwnershipScore border;
   for (auto _ : state) compute_border_distance(coarse, 1, 1, border);
 }
@@ -79,7 +79,7 @@ void BM_Smoothness(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh coarse;
   const ZipperOptions options;
-  downsample_mesh(f.meshes[0], 1, static_cast<float>(options.sdc_max_depth_jump_m), coarse);
+  downsample_mesh(f.meshes[0], 1, depth_jump(options.sdc_max_depth_jump_m, options.sdc_growth_depth_m), coarse);
   // As zippering computes it, on level 1.
   const SmoothnessOptions smoothness_options{.window_cells = (options.smoothness_window_px >> 1) | 1,
                                              .exponent = static_cast<float>(options.smoothness_exponent),
@@ -92,7 +92,7 @@ BENCHMARK(BM_Smoothness)->Unit(benchmark::kMillisecond);
 void BM_DownsampleMesh(benchmark::State& state) {
   const SambaFrame& f = frame();
   DepthMesh coarse;
-  for (auto _ : state) downsample_mesh(f.meshes[0], 2, 0.03f, coarse);
+  for (auto _ : state) downsample_mesh(f.meshes[0], 2, depth_jump(SdcOptions{}), coarse);
 }
 BENCHMARK(BM_DownsampleMesh)->Unit(benchmark::kMillisecond);
 

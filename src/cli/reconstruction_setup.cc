@@ -36,6 +36,10 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "SDC threshold: largest depth difference inside a triangle, metres, for a focal length of 580 px (a Kinect at "
                   "640x480); a camera with a shorter one f (at --lod, the subsampled one) takes it times 580/f")
       ->capture_default_str();
+  cmd->add_option("--max-depth-jump-growth", o.sdc.growth_depth_m,
+                  "SDC threshold: beyond this depth, metres, it grows with the square of depth, as a Kinect's depth step does "
+                  "(0: constant)")
+      ->capture_default_str();
   cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
   cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
   cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
@@ -77,6 +81,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"crop_to_volume", options.foreground.crop_to_volume},
           {"lod", options.depth_level},
           {"max_depth_jump_m", options.sdc.max_depth_jump_m},  // for 580 px; each camera's is sdc_depth_jump of it
+          {"max_depth_jump_growth_m", options.sdc.growth_depth_m},
           {"bilateral_sigma_px", options.filter.spatial_sigma_px},
           {"bilateral_radius_px", options.filter.radius_px},
           {"bilateral_range_sigma_m", options.filter.range_sigma_m},

@@ -9,13 +9,15 @@ namespace zipfusion {
 
 void SdcOptions::validate() const {
   if (!(max_depth_jump_m > 0 && max_depth_jump_m < 1)) throw InvalidInput("max-depth-jump: must be in (0, 1) metres");
+  if (!(growth_depth_m == 0 || (growth_depth_m >= 0.1 && growth_depth_m <= 20)))
+    throw InvalidInput("max-depth-jump-growth: must be 0 (constant) or in [0.1, 20] metres");
 }
 
-ZF_ROW_KERNEL void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits) {
+ZF_ROW_KERNEL void sdc_row(const float* depth, int width, int count, DepthJump max_jump, std::uint8_t* bits) {
   const float* below = depth + width;
   for (int i = 0; i < count; ++i) {
     const float p = depth[i], r = depth[i + 1], b = below[i], d = below[i + 1];
-    auto close = [max_jump](float x, float y) { return static_cast<int>(std::abs(x - y) < max_jump); };
+    auto close = [max_jump](float x, float y) { return static_cast<int>(std::abs(x - y) < max_jump.between(x, y)); };
     const int shared = static_cast<int>(r > 0) & static_cast<int>(b > 0) & close(r, b);
     const int upper = shared & static_cast<int>(p > 0) & close(p, r) & close(p, b);
     const int lower = shared & static_cast<int>(d > 0) & close(r, d) & close(b, d);
@@ -75,7 +77,7 @@ void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rig
   if (box.empty()) box = {};
   out.depth_box = box;
   // A triangle needs depth at its cell's pixel and at the one right of or below it.
-  const float max_jump = static_cast<float>(options.max_depth_jump_m);
+  const DepthJump max_jump = depth_jump(options);
   for (int v = box.v0; v < std::min(box.v1, height - 1); ++v) {
     const int u1 = std::min(box.u1, width - 1);
     sdc_row(out.depth.data() + static_cast<size_t>(v) * width + box.u0, width, u1 - box.u0, max_jump,

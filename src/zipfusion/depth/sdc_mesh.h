@@ -51,9 +51,36 @@ struct SdcOptions {
   // metres, the threshold applied to the depth map triangulated; paper Section III-B (see
   // docs/design.md for the choice). FrameReconstructor sets it per camera (sdc_depth_jump).
   double max_depth_jump_m = 0.03;
+  // metres: beyond this depth the threshold grows with the square of depth, as a structured-light
+  // or stereo sensor's depth step does (the Kinect v1's disparity step is 1.8 cm at 2.5 m and
+  // 4.6 cm at 4 m): max_depth_jump_m holds up to it, then max_depth_jump_m·(z/this)². 0: constant.
+  double growth_depth_m = 3.0;
 
   void validate() const;  // throws InvalidInput naming the field
 };
+
+//! The SDC threshold as a function of depth (SdcOptions): `at_least_m`, or `per_depth2`·z² where
+//! that is larger. Plain data, for the per-pixel kernels.
+struct DepthJump {
+  float at_least_m = 0.03f;
+  float per_depth2 = 0;  // 1/m: at_least_m / growth_depth_m²; 0 = constant
+  //! Element function: the threshold between two depths, taken at the nearer one (where the
+  //! sensor's step is finer: a real step in depth is not excused by the farther surface's noise).
+  float between(float a, float b) const {
+    const float z = a < b ? a : b;
+    const float grown = per_depth2 * z * z;
+    return grown > at_least_m ? grown : at_least_m;
+  }
+  //! The threshold for pixels `factor` times as far apart (a coarse level).
+  DepthJump scaled(float factor) const { return {at_least_m * factor, per_depth2 * factor}; }
+};
+
+//! The threshold SdcOptions describe.
+inline DepthJump depth_jump(double max_depth_jump_m, double growth_depth_m) {
+  return {static_cast<float>(max_depth_jump_m),
+          growth_depth_m > 0 ? static_cast<float>(max_depth_jump_m / (growth_depth_m * growth_depth_m)) : 0.0f};
+}
+inline DepthJump depth_jump(const SdcOptions& options) { return depth_jump(options.max_depth_jump_m, options.growth_depth_m); }
 
 //! Columns [u0, u1) and rows [v0, v1) of an image.
 struct PixelBox {
@@ -89,11 +116,11 @@ struct DepthMesh {
 };
 
 //! Element function: the triangle bits of pixel (u, v) from the depth map.
-inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int height, float max_jump) {
+inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int height, DepthJump max_jump) {
   if (u >= width - 1 || v >= height - 1) return 0;
   const int index = v * width + u;
   const float p = depth[index], r = depth[index + 1], b = depth[index + width], d = depth[index + width + 1];
-  auto close = [max_jump](float a, float c) { return (a > c ? a - c : c - a) < max_jump; };
+  auto close = [max_jump](float a, float c) { return (a > c ? a - c : c - a) < max_jump.between(a, c); };
   std::uint8_t bits = 0;
   if (p > 0 && r > 0 && b > 0 && close(p, r) && close(p, b) && close(r, b)) bits |= kUpperTriangle;
   if (r > 0 && b > 0 && d > 0 && close(r, b) && close(r, d) && close(b, d)) bits |= kLowerTriangle;
@@ -103,7 +130,7 @@ inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int he
 //! sdc_cell for `count` consecutive cells of one row, none in the last row or column of the image
 //! (`depth` points at the first cell's pixel, `width` is the image's row length): one branch-free
 //! loop that vectorises, for the CPU (a row has a few hundred cells, most without depth).
-void sdc_row(const float* depth, int width, int count, float max_jump, std::uint8_t* bits);
+void sdc_row(const float* depth, int width, int count, DepthJump max_jump, std::uint8_t* bits);
 
 //! Element function: does a triangle use pixel p as a vertex, given the bits of p's own cell and
 //! of the cells to its left, above and above-left (0 where a cell does not exist)? p is vertex p

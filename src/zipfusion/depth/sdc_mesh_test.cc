@@ -1,9 +1,13 @@
 #include "zipfusion/depth/sdc_mesh.h"
 
+#include "zipfusion/core/error.h"
+
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <set>
+#include <string>
 #include <tuple>
 
 namespace zipfusion {
@@ -45,19 +49,78 @@ DepthMesh triangulate(const Image<float>& depth, double max_jump = 0.03) {
   return mesh;
 }
 
-// The vectorised row kernel gives, cell by cell, what the element function gives.
+// The vectorised row kernel gives, cell by cell, what the element function gives, with a
+// constant threshold and with one that grows with depth.
 TEST(Sdc, RowKernelMatchesTheElementFunction) {
-  Image<float> depth(37, 9);
-  std::uint32_t state = 12345;
-  for (float& z : depth.data) {
-    state = state * 1664525u + 1013904223u;
-    const int r = static_cast<int>(state >> 24);
-    z = r < 40 ? 0.0f : 2.0f + 0.0004f * static_cast<float>(r % 128);  // holes and jumps around the 3 cm threshold
+  for (const float base_depth : {2.0f, 3.6f}) {
+    Image<float> depth(37, 9);
+    std::uint32_t state = 12345;
+    for (float& z : depth.data) {
+      state = state * 1664525u + 1013904223u;
+      const int r = static_cast<int>(state >> 24);
+      // Holes, and jumps around the 3 cm threshold (at 3.6 m, around its grown 6.2 cm).
+      z = r < 40 ? 0.0f : base_depth + 0.0004f * (base_depth / 2) * static_cast<float>(r % 128);
+    }
+    for (const DepthJump jump : {DepthJump{0.03f}, depth_jump(0.03, 2.5)}) {
+      int triangles = 0;
+      for (int v = 0; v + 1 < depth.height; ++v) {
+        std::vector<std::uint8_t> bits(depth.width - 1);
+        sdc_row(depth.data.data() + v * depth.width, depth.width, depth.width - 1, jump, bits.data());
+        for (int u = 0; u + 1 < depth.width; ++u) {
+          EXPECT_EQ(bits[u], sdc_cell(u, v, depth.data.data(), depth.width, depth.height, jump)) << u << "," << v;
+          triangles += std::popcount(bits[u]);
+        }
+      }
+      EXPECT_GT(triangles, 20) << base_depth;  // some triangles kept and some cut: the comparisons matter
+      EXPECT_LT(triangles, 2 * 36 * 8 - 20) << base_depth;
+    }
   }
-  for (int v = 0; v + 1 < depth.height; ++v) {
-    std::vector<std::uint8_t> bits(depth.width - 1);
-    sdc_row(depth.data.data() + v * depth.width, depth.width, depth.width - 1, 0.03f, bits.data());
-    for (int u = 0; u + 1 < depth.width; ++u) EXPECT_EQ(bits[u], sdc_cell(u, v, depth.data.data(), depth.width, depth.height, 0.03f)) << u << "," << v;
+}
+
+// Up to the growth depth the threshold is max_depth_jump_m; beyond, it grows with depth², judged
+// at the nearer of two depths, so that a far surface's larger depth steps stay one surface while a
+// step from a near surface to a far one is still cut.
+TEST(Sdc, ThresholdGrowsWithTheSquareOfDepthBeyondTheGrowthDepth) {
+  const DepthJump jump = depth_jump(0.03, 2.5);
+  EXPECT_FLOAT_EQ(jump.between(1.0f, 1.02f), 0.03f);
+  EXPECT_FLOAT_EQ(jump.between(2.5f, 2.6f), 0.03f);
+  EXPECT_FLOAT_EQ(jump.between(4.0f, 4.1f), 0.03f * 4.0f * 4.0f / 6.25f);
+  EXPECT_FLOAT_EQ(jump.between(4.1f, 4.0f), 0.03f * 4.0f * 4.0f / 6.25f);
+  EXPECT_FLOAT_EQ(depth_jump(0.03, 0).between(4.0f, 4.1f), 0.03f);
+  EXPECT_FLOAT_EQ(jump.scaled(4).between(4.0f, 4.1f), 4 * 0.03f * 4.0f * 4.0f / 6.25f);
+  // A plane at 4 m sloping away 4 cm a pixel (a Kinect's depth step there is 4.6 cm): one surface
+  // when the threshold grows (7.7 cm at 4 m), no triangle when it is constant; a 10 cm step on
+  // it is cut either way, and at 2 m a 4 cm slope is cut too.
+  auto sloped = [](float near_depth, float slope, int step_at) {
+    Image<float> depth(6, 4);
+    for (int v = 0; v < depth.height; ++v) {
+      for (int u = 0; u < depth.width; ++u) depth(u, v) = near_depth + slope * static_cast<float>(u) + (u >= step_at ? 0.1f : 0.0f);
+    }
+    return depth;
+  };
+  auto triangles = [](const Image<float>& depth, double growth) {
+    DepthMesh mesh;
+    triangulate_sdc(depth, {.width = depth.width, .height = depth.height, .fx = 580, .fy = 580, .cx = 2.5, .cy = 1.5}, Rigid3f::Identity(),
+                    {.max_depth_jump_m = 0.03, .growth_depth_m = growth}, mesh);
+    return mesh.triangle_count();
+  };
+  EXPECT_EQ(triangles(sloped(4.0f, 0.04f, 99), 2.5), 2 * 5 * 3);
+  EXPECT_EQ(triangles(sloped(4.0f, 0.04f, 99), 0), 0);
+  EXPECT_EQ(triangles(sloped(4.0f, 0.04f, 3), 2.5), 2 * 4 * 3);  // the cells across the step go
+  EXPECT_EQ(triangles(sloped(2.0f, 0.04f, 99), 2.5), 0);
+  EXPECT_EQ(triangles(sloped(2.0f, 0.02f, 99), 2.5), 2 * 5 * 3);
+}
+
+TEST(Sdc, GrowthDepthIsValidated) {
+  EXPECT_NO_THROW((SdcOptions{.growth_depth_m = 0}.validate()));
+  EXPECT_NO_THROW((SdcOptions{.growth_depth_m = 3}.validate()));
+  for (const double bad : {-1.0, 0.05, 25.0, std::nan("")}) {
+    try {
+      SdcOptions{.growth_depth_m = bad}.validate();
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find("max-depth-jump-growth"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -603,7 +603,7 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
   cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {2 * reach + 1, 2 * reach + 1}));
 }
 
-void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse) {
+void downsample_mesh(const DepthMesh& fine, int level, DepthJump max_depth_jump, DepthMesh& coarse) {
   const int step = 1 << level;
   reset_depth_mesh(coarse, (fine.width - 1) / step + 1, (fine.height - 1) / step + 1);
   // Coarse pixel (u, v) is fine pixel (u·step, v·step): the same rays, steps scaled.
@@ -625,7 +625,7 @@ void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, Dep
       coarse.depth[v * coarse.width + u] = fine.depth[source_row + u * step];
     }
   }
-  const float threshold = max_depth_jump * static_cast<float>(step);
+  const DepthJump threshold = max_depth_jump.scaled(static_cast<float>(step));
   for (int v = box.v0; v < std::min(box.v1, coarse.height - 1); ++v) {
     const int row = v * coarse.width + box.u0;
     sdc_row(coarse.depth.data() + row, coarse.width, std::min(box.u1, coarse.width - 1) - box.u0, threshold, coarse.triangles.data() + row);

@@ -386,7 +386,7 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
 
 //! A coarser level of a full-resolution mesh: every 2^level-th pixel of `fine` (its depth, and
 //! the rays of those pixels), triangulated by SDC with the depth-jump threshold scaled by 2^level.
-void downsample_mesh(const DepthMesh& fine, int level, float max_depth_jump, DepthMesh& coarse);
+void downsample_mesh(const DepthMesh& fine, int level, DepthJump max_depth_jump, DepthMesh& coarse);
 
 //! Clears in `fine` (one level finer than `coarse`) the triangles covered by the triangles that
 //! were present in `coarse_before` (its SDC bits before any removal) but are gone from `coarse`

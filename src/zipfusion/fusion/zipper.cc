@@ -125,10 +125,14 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     s.bits_before.resize(levels);
     const Rigid3f depth_from_world = cameras[c].model->world_from_depth.inverse().cast<float>();
     assert(cameras[c].max_depth_jump_m >= 0);
-    const float jump = static_cast<float>(cameras[c].max_depth_jump_m > 0 ? cameras[c].max_depth_jump_m : options.sdc_max_depth_jump_m);
+    const DepthJump sdc = depth_jump(cameras[c].max_depth_jump_m > 0 ? cameras[c].max_depth_jump_m : options.sdc_max_depth_jump_m,
+                                     options.sdc_growth_depth_m);
+    // One surface for the same-surface tests: the SDC threshold where it does not grow (the
+    // grown one excuses a far surface's depth steps, not a gap between two surfaces).
+    const float jump = sdc.at_least_m;
     views[c][0] = {cameras[c].mesh, subsampled_intrinsics(cameras[c].model->depth_intrinsics, 0), depth_from_world, &s.ownership, c, 0, jump};
     for (int level = 1; level <= levels; ++level) {
-      downsample_mesh(*cameras[c].mesh, level, jump, s.levels[level - 1]);
+      downsample_mesh(*cameras[c].mesh, level, sdc, s.levels[level - 1]);
       s.bits_before[level - 1] = s.levels[level - 1].triangles;  // what propagation compares against
       views[c][level] = {&s.levels[level - 1], subsampled_intrinsics(cameras[c].model->depth_intrinsics, level), depth_from_world, &s.ownership, c,
                          level, jump * static_cast<float>(1 << level)};
@@ -426,6 +430,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     // then touch only the seam vertices' own small arrays.
     std::vector<int>& seam_slot = scratch.seam_slot;
     std::vector<std::vector<int>>& outgoing = scratch.outgoing;
+    std::vector<std::vector<std::pair<int, int>>>& seam_faces = scratch.seam_faces;
     std::vector<PixelVertex>& seam_vertices = scratch.seam_vertices;
     std::vector<int>& slot_vertex = scratch.slot_vertex;
     std::vector<int>& local_slot = scratch.local_slot;
@@ -448,6 +453,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       }
     }
     if (outgoing.size() < seam_vertices.size()) outgoing.resize(seam_vertices.size());
+    if (seam_faces.size() < seam_vertices.size()) seam_faces.resize(seam_vertices.size());
     // The kept triangles' edges from each seam vertex: those of the (up to six) triangles around
     // its pixel. Each slot's list is its own, so the slots are split over the threads.
     const int slots = static_cast<int>(seam_vertices.size());
@@ -455,6 +461,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     parallel_for(0, slot_blocks, [&](int block) {
       for (int i = static_cast<int>(static_cast<long>(slots) * block / slot_blocks); i < static_cast<long>(slots) * (block + 1) / slot_blocks; ++i) {
         outgoing[i].clear();
+        seam_faces[i].clear();
         const PixelVertex& sv = seam_vertices[i];
         const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
         for_each_grid_triangle_at_pixel(sv.pixel, depth_mesh.width, depth_mesh.height, [&](int cell, TriangleBit bit, const int* pixels, int k) {
@@ -468,14 +475,25 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       const std::vector<int>& ends = outgoing[from];
       return std::find(ends.begin(), ends.end(), to) != ends.end();
     };
+    // Two seams that share three vertices (where three cameras' seams meet) can lay a triangle on
+    // them each, turned over against each other: every edge then has a face on either side, so
+    // the edge test lets the second through. It is the first one's mirror (a, c, b).
+    auto mirrors_a_seam_face = [&](int a, int b, int c) {
+      if (!(has_edge(a, c) && has_edge(c, b) && has_edge(b, a))) return false;
+      const std::vector<std::pair<int, int>>& faces = seam_faces[a];
+      return std::find(faces.begin(), faces.end(), std::pair{c, b}) != faces.end();
+    };
     const int* seam_local_slot = local_slot.data();
     for (const Seam& seam : seams) {
       for (const Eigen::Vector3i& local : seam.triangles) {
         const int a = seam_local_slot[local[0]], b = seam_local_slot[local[1]], c = seam_local_slot[local[2]];
-        if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a)) {
+        if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a) || mirrors_a_seam_face(a, b, c)) {
           ++result.stats.seam_rejected;
           continue;
         }
+        seam_faces[a].emplace_back(b, c);
+        seam_faces[b].emplace_back(c, a);
+        seam_faces[c].emplace_back(a, b);
         mesh.triangles.emplace_back(slot_vertex[a], slot_vertex[b], slot_vertex[c]);
         outgoing[a].push_back(b);
         outgoing[b].push_back(c);

@@ -42,6 +42,7 @@ struct ZipperOptions {
   int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays, then the creases' corners (SeamOptions::fairing_iterations); 0: neither
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
+  double sdc_growth_depth_m = 3.0;      // the input meshes' SdcOptions::growth_depth_m (their coarse levels grow alike)
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)
   int num_threads = 0;                  // 0 = all hardware threads
 
@@ -70,7 +71,7 @@ struct ZipperStats {
   int redundant_removed = 0;  // full-resolution triangles removed as redundant (incl. propagated)
   int seam_taken = 0;         // triangles replaced by seams
   int seam_added = 0;         // seam triangles created
-  int seam_rejected = 0;      // seam triangles dropped for reusing a directed edge (overlap)
+  int seam_rejected = 0;      // seam triangles dropped for reusing a directed edge (overlap) or mirroring another seam's
   int seam_pca = 0;           // seams laid out on their PCA plane (a point behind the virtual camera)
 };
 
@@ -103,6 +104,7 @@ struct ZipperScratch {
   std::vector<int> slot_vertex;              // assembly: per slot, its output vertex
   std::vector<int> local_slot;               // assembly: per seam vertex of each seam in turn, its slot
   std::vector<std::vector<int>> outgoing;    // assembly: per slot, the slots its directed edges end at
+  std::vector<std::vector<std::pair<int, int>>> seam_faces;  // assembly: per slot a, the seam triangles (a, b, c) on it, as (b, c)
 };
 
 //! `reuse`: a mesh whose buffers the result's mesh is built in (its contents are dropped).

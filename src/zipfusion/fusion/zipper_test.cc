@@ -658,7 +658,7 @@ TEST(Redundancy, CoarseLevelPointsAreTheirFinePixelsPoints) {
   EXPECT_TRUE(fine.point(200, 150).isApprox(world_from_depth * unproject(kKinect, 200.0f, 150.0f, depth(200, 150)), 1e-5f));
   for (const int level : {1, 2}) {
     DepthMesh coarse;
-    downsample_mesh(fine, level, 0.03f, coarse);
+    downsample_mesh(fine, level, depth_jump(SdcOptions{}), coarse);
     const int step = 1 << level;
     int compared = 0;
     for (int v = 0; v < coarse.height; v += 7) {
@@ -692,12 +692,12 @@ TEST(Redundancy, ReusedBuffersGiveWhatFreshOnesGive) {
   OwnershipScore reused_smoothness, reused_border, fresh_smoothness, fresh_border;
   for (const Image<float>* depth : {&large, &small}) {
     triangulate_sdc(*depth, k, Rigid3f::Identity(), {}, reused_mesh);
-    downsample_mesh(reused_mesh, 1, 0.06f, reused_coarse);
+    downsample_mesh(reused_mesh, 1, DepthJump{0.06f}, reused_coarse);
     compute_smoothness(reused_mesh, k, 0, smoothness, reused_smoothness);
     compute_border_distance(reused_mesh, 0, 2, reused_border);
   }
   triangulate_sdc(small, k, Rigid3f::Identity(), {}, fresh_mesh);
-  downsample_mesh(fresh_mesh, 1, 0.06f, fresh_coarse);
+  downsample_mesh(fresh_mesh, 1, DepthJump{0.06f}, fresh_coarse);
   compute_smoothness(fresh_mesh, k, 0, smoothness, fresh_smoothness);
   compute_border_distance(fresh_mesh, 0, 2, fresh_border);
   EXPECT_EQ(reused_mesh.triangles, fresh_mesh.triangles);

@@ -63,6 +63,7 @@ FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions&
       cameras_(rig.cameras.size()) {
   if (options_.depth_level > 0) full_resolution_cameras_ = rig.cameras;
   for (size_t c = 0; c < cameras_.size(); ++c) {
+    cameras_[c].sdc = options_.sdc;
     cameras_[c].sdc.max_depth_jump_m = sdc_depth_jump(options_.sdc.max_depth_jump_m, rig_.cameras[c].depth_intrinsics);
     // Same surface for subsample_depth: the SDC threshold of the full-resolution pixels.
     cameras_[c].subsample_same_surface_m = static_cast<float>(sdc_depth_jump(options_.sdc.max_depth_jump_m, rig.cameras[c].depth_intrinsics));
@@ -145,6 +146,7 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
       if (active[c]) inputs[c] = {&cameras_[c].mesh, color_of(c), &rig_.cameras[c], cameras_[c].sdc.max_depth_jump_m};
     }
     ZipperOptions zipper = options_.zipper;
+    zipper.sdc_growth_depth_m = options_.sdc.growth_depth_m;
     zipper.ownership = options_.ownership();
     zipper.seam_smoothing_px = options_.seam_smoothing_px();
     zipper.num_threads = threads;
