@@ -425,12 +425,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   auto add_seam_triangles = [&] {
     auto vertex = [&](const PixelVertex& v) { return vertex_offset[v.camera] + scratch.cameras[v.camera].vertex_of_pixel[v.pixel]; };
     // Directed edges between seam vertices, by slot (a seam vertex's index among them): per slot,
-    // the slots its outgoing edges end at (a vertex has a handful). Other vertices are -1 in
+    // the slots its outgoing edges end at, each with its triangle's third corner (a vertex has a
+    // handful). Other vertices are -1 in
     // seam_slot. Each seam's vertices are looked up once, here, as slots: the edge tests below
     // then touch only the seam vertices' own small arrays.
     std::vector<int>& seam_slot = scratch.seam_slot;
-    std::vector<std::vector<int>>& outgoing = scratch.outgoing;
-    std::vector<std::vector<std::pair<int, int>>>& seam_faces = scratch.seam_faces;
+    std::vector<std::vector<ZipperScratch::DirectedEdge>>& outgoing = scratch.outgoing;
     std::vector<PixelVertex>& seam_vertices = scratch.seam_vertices;
     std::vector<int>& slot_vertex = scratch.slot_vertex;
     std::vector<int>& local_slot = scratch.local_slot;
@@ -453,7 +453,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       }
     }
     if (outgoing.size() < seam_vertices.size()) outgoing.resize(seam_vertices.size());
-    if (seam_faces.size() < seam_vertices.size()) seam_faces.resize(seam_vertices.size());
     // The kept triangles' edges from each seam vertex: those of the (up to six) triangles around
     // its pixel. Each slot's list is its own, so the slots are split over the threads.
     const int slots = static_cast<int>(seam_vertices.size());
@@ -461,43 +460,38 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     parallel_for(0, slot_blocks, [&](int block) {
       for (int i = static_cast<int>(static_cast<long>(slots) * block / slot_blocks); i < static_cast<long>(slots) * (block + 1) / slot_blocks; ++i) {
         outgoing[i].clear();
-        seam_faces[i].clear();
         const PixelVertex& sv = seam_vertices[i];
         const DepthMesh& depth_mesh = *cameras[sv.camera].mesh;
         for_each_grid_triangle_at_pixel(sv.pixel, depth_mesh.width, depth_mesh.height, [&](int cell, TriangleBit bit, const int* pixels, int k) {
           if (!(depth_mesh.triangles[cell] & bit)) return;
           const int to = seam_slot[vertex({sv.camera, pixels[(k + 1) % 3]})];
-          if (to >= 0) outgoing[i].push_back(to);
+          if (to >= 0) outgoing[i].push_back({to, seam_slot[vertex({sv.camera, pixels[(k + 2) % 3]})]});
         });
       }
     }, options.num_threads);
     auto has_edge = [&](int from, int to) {
-      const std::vector<int>& ends = outgoing[from];
-      return std::find(ends.begin(), ends.end(), to) != ends.end();
+      const std::vector<ZipperScratch::DirectedEdge>& edges = outgoing[from];
+      return std::any_of(edges.begin(), edges.end(), [to](const ZipperScratch::DirectedEdge& e) { return e.to == to; });
     };
     // Two seams that share three vertices (where three cameras' seams meet) can lay a triangle on
     // them each, turned over against each other: every edge then has a face on either side, so
     // the edge test lets the second through. It is the first one's mirror (a, c, b).
-    auto mirrors_a_seam_face = [&](int a, int b, int c) {
-      if (!(has_edge(a, c) && has_edge(c, b) && has_edge(b, a))) return false;
-      const std::vector<std::pair<int, int>>& faces = seam_faces[a];
-      return std::find(faces.begin(), faces.end(), std::pair{c, b}) != faces.end();
+    auto has_face = [&](int a, int b, int c) {
+      const std::vector<ZipperScratch::DirectedEdge>& edges = outgoing[a];
+      return std::any_of(edges.begin(), edges.end(), [b, c](const ZipperScratch::DirectedEdge& e) { return e.to == b && e.third == c; });
     };
     const int* seam_local_slot = local_slot.data();
     for (const Seam& seam : seams) {
       for (const Eigen::Vector3i& local : seam.triangles) {
         const int a = seam_local_slot[local[0]], b = seam_local_slot[local[1]], c = seam_local_slot[local[2]];
-        if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a) || mirrors_a_seam_face(a, b, c)) {
+        if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a) || has_face(a, c, b)) {
           ++result.stats.seam_rejected;
           continue;
         }
-        seam_faces[a].emplace_back(b, c);
-        seam_faces[b].emplace_back(c, a);
-        seam_faces[c].emplace_back(a, b);
         mesh.triangles.emplace_back(slot_vertex[a], slot_vertex[b], slot_vertex[c]);
-        outgoing[a].push_back(b);
-        outgoing[b].push_back(c);
-        outgoing[c].push_back(a);
+        outgoing[a].push_back({b, c});
+        outgoing[b].push_back({c, a});
+        outgoing[c].push_back({a, b});
         ++result.stats.seam_added;
       }
       seam_local_slot += seam.vertices.size();

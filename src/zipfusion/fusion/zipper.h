@@ -42,7 +42,7 @@ struct ZipperOptions {
   int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays, then the creases' corners (SeamOptions::fairing_iterations); 0: neither
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
-  double sdc_growth_depth_m = 3.0;      // the input meshes' SdcOptions::growth_depth_m (their coarse levels grow alike)
+  double sdc_growth_depth_m = SdcOptions{}.growth_depth_m;  // the input meshes' SdcOptions::growth_depth_m (their coarse levels grow alike)
   int depth_level = 0;                  // the meshes' depth is subsampled by 2^this (ReconstructOptions::depth_level)
   int num_threads = 0;                  // 0 = all hardware threads
 
@@ -103,8 +103,11 @@ struct ZipperScratch {
   std::vector<PixelVertex> seam_vertices;    // assembly: per slot, its pixel
   std::vector<int> slot_vertex;              // assembly: per slot, its output vertex
   std::vector<int> local_slot;               // assembly: per seam vertex of each seam in turn, its slot
-  std::vector<std::vector<int>> outgoing;    // assembly: per slot, the slots its directed edges end at
-  std::vector<std::vector<std::pair<int, int>>> seam_faces;  // assembly: per slot a, the seam triangles (a, b, c) on it, as (b, c)
+  struct DirectedEdge {
+    int to;     // the slot the edge ends at
+    int third;  // the slot of its triangle's third corner, or -1 (a kept triangle's corner that is no seam vertex)
+  };
+  std::vector<std::vector<DirectedEdge>> outgoing;  // assembly: per slot, its directed edges (those of kept and seam triangles)
 };
 
 //! `reuse`: a mesh whose buffers the result's mesh is built in (its contents are dropped).
