@@ -72,7 +72,7 @@ void run_reconstruct(ReconstructArgs& args) {
                               {"assemble", t.assemble_ms}, {"total", t.total_ms}, {"write", write_ms}}},
                       {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added},
-                                  {"seam_pca", result.zipper.seam_pca}}}});
+                                  {"seam_pca", result.zipper.seam_pca}, {"seam_crease_gaps", result.zipper.seam_crease_gaps}}}});
     if (in.live && in.skew_of(frame.index) >= 0) frames.back()["skew_ms"] = in.skew_of(frame.index);
     if (range.end > range.begin) show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
   }, pipeline_options);

@@ -25,8 +25,10 @@
 //! is smoother; the corners of any crease still left move towards their neighbours along the
 //! layout's line of sight, off their pixel's ray but not so far that the pixel grid around them
 //! folds in their own camera (keeps_pixel_grid_unfolded); a point at a crease left after that
-//! leaves the triangulation. A crease between a seam face and the kept triangle beyond a kept
-//! edge counts as one between two seam faces (docs/design.md).
+//! leaves the triangulation, and a face at a crease still left is not output (a one-triangle gap
+//! instead of a fold). A crease between a seam face and the kept triangle beyond a kept edge
+//! counts as one between two seam faces, and no face lies on the kept triangle's side of a kept
+//! edge (docs/design.md).
 
 #include <array>
 #include <cstdint>
@@ -60,6 +62,7 @@ struct Seam {
   std::vector<Eigen::Vector3i> triangles;  // indices into `vertices`, facing the cameras
   int triangles_taken = 0;                 // original triangles replaced by the seam
   bool used_pca = false;                   // the PCA fallback projection was used
+  int creased_faces_dropped = 0;           // faces left out at a crease nothing else mended (each a one-triangle gap)
 };
 
 //! Scratch space of one camera for clipping, reused across frames.

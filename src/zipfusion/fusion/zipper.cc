@@ -406,6 +406,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     seams[i] = std::move(taken[i].seam);
     result.stats.seam_taken += seams[i].triangles_taken;
     result.stats.seam_pca += seams[i].used_pca;
+    result.stats.seam_crease_gaps += seams[i].creased_faces_dropped;
   }
   // Clipping ends with the last seam; the writing still running then, and what follows, is
   // assembly's (and the counting before, a few percent of it, clipping's).

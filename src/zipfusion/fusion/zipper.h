@@ -73,6 +73,7 @@ struct ZipperStats {
   int seam_added = 0;         // seam triangles created
   int seam_rejected = 0;      // seam triangles dropped for reusing a directed edge (overlap) or mirroring another seam's
   int seam_pca = 0;           // seams laid out on their PCA plane (a point behind the virtual camera)
+  int seam_crease_gaps = 0;   // seam faces left out at a crease nothing else mended, each a one-triangle gap
 };
 
 struct ZipperResult {
