@@ -18,6 +18,7 @@
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <utility>
 #include <vector>
 
 #include "zipfusion/core/camera.h"
@@ -219,6 +220,32 @@ void for_each_nonzero_byte(const std::uint8_t* bytes, int count, F&& f) {
   for (; i < count; ++i) {
     if (bytes[i]) f(i, bytes[i]);
   }
+}
+
+//! [first, end) from the first nonzero byte of bytes[0..count) to one past the last, {0, 0} when
+//! all are 0; the zero bytes before and after are skipped eight at a time. Passes over a row of
+//! the depth box use it to skip the cells or pixels left and right of the subject.
+inline std::pair<int, int> nonzero_span(const std::uint8_t* bytes, int count) {
+  static_assert(std::endian::native == std::endian::little, "byte k of a word is bits 8k..8k+7");
+  int first = 0;
+  std::uint64_t word = 0;
+  for (; first + 8 <= count; first += 8) {
+    std::memcpy(&word, bytes + first, sizeof word);
+    if (word != 0) break;
+  }
+  if (first + 8 <= count) {
+    first += std::countr_zero(word) >> 3;
+  } else {
+    while (first < count && bytes[first] == 0) ++first;
+    if (first == count) return {0, 0};
+  }
+  int end = count;
+  for (; end - 8 >= first; end -= 8) {
+    std::memcpy(&word, bytes + end - 8, sizeof word);
+    if (word != 0) return {first, end - (std::countl_zero(word) >> 3)};
+  }
+  while (bytes[end - 1] == 0) --end;  // stops at bytes[first], which is not 0
+  return {first, end};
 }
 
 //! Calls f(cell, bits) for every cell with a triangle, in order.

@@ -142,6 +142,22 @@ TEST(Sdc, NonzeroBytesAreVisitedOnceEachInOrder) {
   }
 }
 
+TEST(Sdc, NonzeroSpanRunsFromTheFirstToPastTheLastNonzeroByte) {
+  // Every placement of one or two nonzero bytes in rows that end on a word and do not, and rows
+  // of zeros: the span against a byte-by-byte search.
+  for (int count : {0, 1, 5, 8, 9, 16, 23, 40}) {
+    EXPECT_EQ(nonzero_span(std::vector<std::uint8_t>(count, 0).data(), count), std::make_pair(0, 0)) << count;
+    for (int i = 0; i < count; ++i) {
+      for (int j = i; j < count; ++j) {
+        std::vector<std::uint8_t> bytes(count, 0);
+        bytes[i] = 3;
+        bytes[j] = 200;
+        EXPECT_EQ(nonzero_span(bytes.data(), count), std::make_pair(i, j + 1)) << count << " bytes, set at " << i << " and " << j;
+      }
+    }
+  }
+}
+
 TEST(Sdc, FlatPatchIsFullyTriangulated) {
   const DepthMesh mesh = triangulate(depth_from({{2, 2, 2, 2}, {2, 2, 2, 2}, {2, 2, 2, 2}}));
   // Pixels are numbered row-major: 0 1 2 3 / 4 5 6 7 / 8 9 10 11.

@@ -67,6 +67,7 @@ struct OwnershipScore {
   // Not part of the score: buffers compute_smoothness reuses from one frame to the next.
   std::vector<float> padded_depth, row_sums, row_counts, smooth_depth, ray_x, area, smooth_area, area_sums, smooth_sums;
   std::vector<double> area_table, smooth_area_table, padded_columns, powers, results;
+  std::vector<std::pair<int, int>> cell_spans;  // per row of the box, its cells with triangles [first, end)
 };
 
 //! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its

@@ -515,8 +515,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const PixelBox box = depth_mesh.box();
     for (int v = box.v0; v < box.v1; ++v) {
       const std::uint8_t* used = s.used.data() + v * depth_mesh.width;
-      lookup.for_each_color_in_row(v, box.u0, box.u1, depth_mesh.depth.data() + v * depth_mesh.width, [&](int u) { return used[u] != 0; },
-                                   [&](int, Rgb8 color) { *out++ = color; });
+      // Only the row's used pixels are projected: those of the subject, a fraction of the box.
+      const auto [first, end] = nonzero_span(used + box.u0, box.u1 - box.u0);
+      lookup.for_each_color_in_row(v, box.u0 + first, box.u0 + end, depth_mesh.depth.data() + v * depth_mesh.width,
+                                   [&](int u) { return used[u] != 0; }, [&](int, Rgb8 color) { *out++ = color; });
     }
   };
   parallel_for(0, static_cast<int>(active.size()) + 1, [&](int item) {
