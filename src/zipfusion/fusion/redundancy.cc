@@ -243,16 +243,26 @@ void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, 
 
 namespace {
 
-// Adds to the sums and counts of `count` pixels (depths `centres`) their taps `taps` (the depths
-// at one offset) that lie on the same surface: with depth, within `same_surface` of the pixel's.
+// The same-surface average's half width: 5×5 cells.
+constexpr int kSmoothRadius = 2;
+
+// Adds to the sums and counts of `count` pixels (depths `centres`) their taps in one row of the
+// window, the depths row[i − kSmoothRadius..i + kSmoothRadius] from left to right, that lie on the
+// same surface: with depth, within `same_surface` of the pixel's. A row's five taps go in one pass,
+// added in the order of one pass per tap (the same floats), which loaded and stored the sums and
+// counts at every tap: 4.1 → 2.2 M instructions a frame set on samba-4cam unfiltered.
 // Branch-free over the pixels of a row, so it vectorises.
-ZF_ROW_KERNEL void add_same_surface_taps(const float* centres, const float* taps, int count, float same_surface_m, float* sums,
-                                         float* counts) {
+ZF_ROW_KERNEL void add_same_surface_row(const float* centres, const float* row, int count, float same_surface_m, float* sums, float* counts) {
   for (int i = 0; i < count; ++i) {
-    const float z = taps[i];
-    const float same = static_cast<float>(z > 0.0f) * static_cast<float>(std::abs(z - centres[i]) < same_surface_m);
-    sums[i] += same * z;
-    counts[i] += same;
+    float sum = sums[i], n = counts[i];
+    for (int dx = -kSmoothRadius; dx <= kSmoothRadius; ++dx) {
+      const float z = row[i + dx];
+      const float same = static_cast<float>(z > 0.0f) * static_cast<float>(std::abs(z - centres[i]) < same_surface_m);
+      sum += same * z;
+      n += same;
+    }
+    sums[i] = sum;
+    counts[i] = n;
   }
 }
 
@@ -367,7 +377,6 @@ void smoothness_score_row(const std::uint8_t* bits, const float* area_sums, cons
 }  // namespace
 
 void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, const SmoothnessOptions& options, OwnershipScore& out) {
-  constexpr int kSmoothRadius = 2;  // the averaged depth: 5×5 cells
   // Cells outside the depth box have no triangles and add no area to a window: a window is cut
   // at the box's edges, so the box needs no room for the window (at 250 pixels that would be
   // most of the image), only for the averaging.
@@ -417,9 +426,7 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
     counts.assign(count, 0.0f);
     const float* centre = padded_row(y) + first;
     for (int dy = -kSmoothRadius; dy <= kSmoothRadius; ++dy) {
-      for (int dx = -kSmoothRadius; dx <= kSmoothRadius; ++dx) {
-        add_same_surface_taps(centre, padded_row(y + dy) + first + dx, count, options.same_surface_m, sums.data(), counts.data());
-      }
+      add_same_surface_row(centre, padded_row(y + dy) + first, count, options.same_surface_m, sums.data(), counts.data());
     }
     mean_depth_row(sums.data(), counts.data(), count, smooth_row(y) + first);
   }
