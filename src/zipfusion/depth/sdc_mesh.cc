@@ -59,6 +59,13 @@ void reset_depth_mesh(DepthMesh& mesh, int width, int height, bool clear_depth) 
 
 namespace {
 
+// Element function: is one of depth[0..8) > 0? Branch-free, so the eight compares go as vectors.
+bool any_positive8(const float* depth) {
+  unsigned any = 0;
+  for (int i = 0; i < 8; ++i) any |= static_cast<unsigned>(depth[i] > 0);
+  return any != 0;
+}
+
 // triangulate_sdc once `out.depth` holds the depth image, width × height (`out`'s triangles and
 // depth box still those of its previous image).
 void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
@@ -66,23 +73,36 @@ void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rig
   reset_depth_mesh(out, width, height, false);
   out.rays = PixelRays(k, world_from_depth);
   PixelBox box{width, height, 0, 0};
+  const DepthJump max_jump = depth_jump(options);
+  // Each row's span of pixels with depth, [first, end) (empty: first = end). Both triangles of a
+  // cell have the pixels right of and below its own as corners, so the cells of row v − 1 that can
+  // hold one lie where row v − 1's span, one pixel to the left, meets row v's; they are formed
+  // once row v's span is known, and the rest of the box keeps the bits reset_depth_mesh cleared.
+  // The subject fills about a quarter of its box.
+  int previous_first = 0, previous_end = 0;
   for (int v = 0; v < height; ++v) {
     const float* row = out.depth.data() + static_cast<size_t>(v) * width;
-    int first = 0, last = width - 1;
+    int first = 0, end = width;
+    // Eight pixels at a time over the empty parts (three quarters of a row), then one by one.
+    while (first + 8 <= width && !any_positive8(row + first)) first += 8;
     while (first < width && !(row[first] > 0)) ++first;
-    if (first == width) continue;
-    while (!(row[last] > 0)) --last;
-    box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, last + 1), v + 1};
+    if (first < width) {
+      while (end - 8 > first && !any_positive8(row + end - 8)) end -= 8;
+      while (!(row[end - 1] > 0)) --end;
+      box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, end), v + 1};
+    } else {
+      first = end = 0;
+    }
+    const int cell_first = std::max(previous_first - 1, first), cell_end = std::min(previous_end - 1, end);
+    if (cell_first < cell_end) {
+      const size_t cells = static_cast<size_t>(v - 1) * width + cell_first;
+      sdc_row(out.depth.data() + cells, width, cell_end - cell_first, max_jump, out.triangles.data() + cells);
+    }
+    previous_first = first;
+    previous_end = end;
   }
   if (box.empty()) box = {};
   out.depth_box = box;
-  // A triangle needs depth at its cell's pixel and at the one right of or below it.
-  const DepthJump max_jump = depth_jump(options);
-  for (int v = box.v0; v < std::min(box.v1, height - 1); ++v) {
-    const int u1 = std::min(box.u1, width - 1);
-    sdc_row(out.depth.data() + static_cast<size_t>(v) * width + box.u0, width, u1 - box.u0, max_jump,
-            out.triangles.data() + static_cast<size_t>(v) * width + box.u0);
-  }
 }
 
 }  // namespace

@@ -187,6 +187,39 @@ TEST(Sdc, TakingTheDepthGivesTheSameMeshAsCopyingIt) {
   }
 }
 
+// Triangulation forms only the cells where a row's pixels with depth meet the next row's; every
+// other cell must come out as the element function says (none), and the box must hold every
+// pixel with depth. Blobs of depth with ragged rows, empty rows, rows that end at either edge
+// and one pixel wide, with holes and steps; each frame reuses the mesh the one before left.
+TEST(Sdc, TriangulationOverRowSpansMatchesTheElementFunctionEverywhere) {
+  std::mt19937 random(11);
+  DepthMesh mesh;
+  for (int frame = 0; frame < 40; ++frame) {
+    const int width = 5 + static_cast<int>(random() % 40), height = 3 + static_cast<int>(random() % 20);
+    Image<float> depth(width, height);
+    for (int v = 0; v < height; ++v) {
+      if (random() % 5 == 0) continue;  // an empty row
+      const int a = static_cast<int>(random() % width), b = static_cast<int>(random() % width);
+      for (int u = std::min(a, b); u <= std::max(a, b); ++u) {
+        if (random() % 9 == 0) continue;  // a hole
+        depth(u, v) = 2.0f + 0.01f * static_cast<float>(random() % 6);  // steps up to 5 cm against 3 cm
+      }
+    }
+    const Intrinsics k{.width = width, .height = height, .fx = 100, .fy = 100, .cx = width / 2.0, .cy = height / 2.0};
+    triangulate_sdc(depth, k, Rigid3f::Identity(), {.max_depth_jump_m = 0.03}, mesh);
+    const DepthJump jump = depth_jump(SdcOptions{.max_depth_jump_m = 0.03});
+    const PixelBox box = mesh.box();
+    for (int v = 0; v < height; ++v) {
+      for (int u = 0; u < width; ++u) {
+        ASSERT_EQ(mesh.triangles[v * width + u], sdc_cell(u, v, depth.data.data(), width, height, jump)) << "frame " << frame << ", cell " << u << ", " << v;
+        if (depth(u, v) > 0) {
+          ASSERT_TRUE(u >= box.u0 && u < box.u1 && v >= box.v0 && v < box.v1) << "frame " << frame << ", pixel " << u << ", " << v;
+        }
+      }
+    }
+  }
+}
+
 TEST(Sdc, MissingDepthAndStepsRemoveExactlyTheirTriangles) {
   // Pixel 5 has no depth; pixel 3 stands 5 cm behind its neighbours (a step); pixel 10 is 2.9 cm
   // off, within the 3 cm threshold.
