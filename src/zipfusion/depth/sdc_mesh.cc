@@ -59,13 +59,6 @@ void reset_depth_mesh(DepthMesh& mesh, int width, int height, bool clear_depth) 
 
 namespace {
 
-// Element function: is one of depth[0..8) > 0? Branch-free, so the eight compares go as vectors.
-bool any_positive8(const float* depth) {
-  unsigned any = 0;
-  for (int i = 0; i < 8; ++i) any |= static_cast<unsigned>(depth[i] > 0);
-  return any != 0;
-}
-
 // triangulate_sdc once `out.depth` holds the depth image, width × height (`out`'s triangles and
 // depth box still those of its previous image).
 void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rigid3f& world_from_depth, const SdcOptions& options,
@@ -81,18 +74,8 @@ void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rig
   // The subject fills about a quarter of its box.
   int previous_first = 0, previous_end = 0;
   for (int v = 0; v < height; ++v) {
-    const float* row = out.depth.data() + static_cast<size_t>(v) * width;
-    int first = 0, end = width;
-    // Eight pixels at a time over the empty parts (three quarters of a row), then one by one.
-    while (first + 8 <= width && !any_positive8(row + first)) first += 8;
-    while (first < width && !(row[first] > 0)) ++first;
-    if (first < width) {
-      while (end - 8 > first && !any_positive8(row + end - 8)) end -= 8;
-      while (!(row[end - 1] > 0)) --end;
-      box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, end), v + 1};
-    } else {
-      first = end = 0;
-    }
+    const auto [first, end] = positive_span(out.depth.data() + static_cast<size_t>(v) * width, width);
+    if (first < end) box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, end), v + 1};
     const int cell_first = std::max(previous_first - 1, first), cell_end = std::min(previous_end - 1, end);
     if (cell_first < cell_end) {
       const size_t cells = static_cast<size_t>(v - 1) * width + cell_first;

@@ -248,6 +248,25 @@ inline std::pair<int, int> nonzero_span(const std::uint8_t* bytes, int count) {
   return {first, end};
 }
 
+//! Element function: is one of depth[0..8) > 0? Branch-free, so the eight compares go as vectors.
+inline bool any_positive8(const float* depth) {
+  unsigned any = 0;
+  for (int i = 0; i < 8; ++i) any |= static_cast<unsigned>(depth[i] > 0);
+  return any != 0;
+}
+
+//! [first, end) from the first pixel of depth[0..count) with depth (> 0) to one past the last,
+//! {0, 0} when none has; the empty parts are skipped eight pixels at a time.
+inline std::pair<int, int> positive_span(const float* depth, int count) {
+  int first = 0, end = count;
+  while (first + 8 <= count && !any_positive8(depth + first)) first += 8;
+  while (first < count && !(depth[first] > 0)) ++first;
+  if (first == count) return {0, 0};
+  while (end - 8 > first && !any_positive8(depth + end - 8)) end -= 8;
+  while (!(depth[end - 1] > 0)) --end;  // stops at depth[first], which is > 0
+  return {first, end};
+}
+
 //! Calls f(cell, bits) for every cell with a triangle, in order.
 template <typename F>
 void for_each_nonempty_cell(const std::vector<std::uint8_t>& triangles, F&& f) {

@@ -672,6 +672,46 @@ TEST(Redundancy, CoarseLevelPointsAreTheirFinePixelsPoints) {
   }
 }
 
+// The coarse levels copy and triangulate only each row's span of the subject: every coarse pixel
+// must hold its fine pixel's depth and every coarse cell what sdc_cell gives on that subsampled
+// depth (the threshold scaled), on ragged blobs with holes, steps and empty rows, in reused buffers.
+TEST(Redundancy, CoarseLevelsMatchTheElementFunctionOnTheSubsampledDepth) {
+  std::mt19937 random(5);
+  DepthMesh fine, coarse;
+  for (int frame = 0; frame < 30; ++frame) {
+    const int width = 9 + static_cast<int>(random() % 60), height = 5 + static_cast<int>(random() % 30);
+    Image<float> depth(width, height, 0.0f);
+    for (int v = 0; v < height; ++v) {
+      if (random() % 5 == 0) continue;  // an empty row
+      const int a = static_cast<int>(random() % width), b = static_cast<int>(random() % width);
+      for (int u = std::min(a, b); u <= std::max(a, b); ++u) {
+        if (random() % 9 != 0) depth(u, v) = 2.0f + 0.02f * static_cast<float>(random() % 6);  // holes; steps of up to 10 cm
+      }
+    }
+    const Intrinsics k{.width = width, .height = height, .fx = 100, .fy = 100, .cx = width / 2.0, .cy = height / 2.0};
+    triangulate_sdc(depth, k, Rigid3f::Identity(), {}, fine);
+    for (const int level : {1, 2}) {
+      const DepthJump jump{0.03f};
+      downsample_mesh(fine, level, jump, coarse);
+      const int step = 1 << level, coarse_width = (width - 1) / step + 1, coarse_height = (height - 1) / step + 1;
+      ASSERT_EQ(coarse.width, coarse_width);
+      ASSERT_EQ(coarse.height, coarse_height);
+      Image<float> subsampled(coarse_width, coarse_height, 0.0f);
+      for (int v = 0; v < coarse_height; ++v) {
+        for (int u = 0; u < coarse_width; ++u) subsampled(u, v) = depth(u * step, v * step);
+      }
+      for (int v = 0; v < coarse_height; ++v) {
+        for (int u = 0; u < coarse_width; ++u) {
+          const int cell = v * coarse_width + u;
+          ASSERT_EQ(coarse.depth[cell], subsampled(u, v)) << "frame " << frame << ", level " << level << ", pixel " << u << ", " << v;
+          ASSERT_EQ(coarse.triangles[cell], sdc_cell(u, v, subsampled.data.data(), coarse_width, coarse_height, jump.scaled(static_cast<float>(step))))
+              << "frame " << frame << ", level " << level << ", cell " << u << ", " << v;
+        }
+      }
+    }
+  }
+}
+
 // Meshes, coarse levels and ownership scores are reused from frame to frame and cleared only
 // where the previous frame wrote: after a frame whose person filled a large box, a frame with a
 // small one elsewhere must come out exactly as it does in fresh buffers.
