@@ -211,7 +211,8 @@ TEST(Sdc, TriangulationOverRowSpansMatchesTheElementFunctionEverywhere) {
     const PixelBox box = mesh.box();
     for (int v = 0; v < height; ++v) {
       for (int u = 0; u < width; ++u) {
-        ASSERT_EQ(mesh.triangles[v * width + u], sdc_cell(u, v, depth.data.data(), width, height, jump)) << "frame " << frame << ", cell " << u << ", " << v;
+        ASSERT_EQ(mesh.triangles[v * width + u], sdc_cell(u, v, depth.data.data(), width, height, jump))
+            << "frame " << frame << ", cell " << u << ", " << v;
         if (depth(u, v) > 0) {
           ASSERT_TRUE(u >= box.u0 && u < box.u1 && v >= box.v0 && v < box.v1) << "frame " << frame << ", pixel " << u << ", " << v;
         }

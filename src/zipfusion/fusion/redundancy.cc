@@ -482,8 +482,9 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
                     out.area_sums.data());
     window_sums_row(out.smooth_area_table.data() + top, out.smooth_area_table.data() + bottom, box.width, radius, first, count,
                     out.padded_columns.data(), out.smooth_sums.data());
-    smoothness_score_row(mesh.triangles.data() + (box.y + y) * mesh.width + box.x + first, out.area_sums.data() + first, out.smooth_sums.data() + first,
-                         count, options.exponent, lowest_ratio, out.powers.data(), out.results.data(), &out.cell(box.x + first, box.y + y));
+    smoothness_score_row(mesh.triangles.data() + (box.y + y) * mesh.width + box.x + first, out.area_sums.data() + first,
+                         out.smooth_sums.data() + first, count, options.exponent, lowest_ratio, out.powers.data(), out.results.data(),
+                         &out.cell(box.x + first, box.y + y));
   }
 }
 

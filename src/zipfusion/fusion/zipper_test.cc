@@ -704,7 +704,8 @@ TEST(Redundancy, CoarseLevelsMatchTheElementFunctionOnTheSubsampledDepth) {
         for (int u = 0; u < coarse_width; ++u) {
           const int cell = v * coarse_width + u;
           ASSERT_EQ(coarse.depth[cell], subsampled(u, v)) << "frame " << frame << ", level " << level << ", pixel " << u << ", " << v;
-          ASSERT_EQ(coarse.triangles[cell], sdc_cell(u, v, subsampled.data.data(), coarse_width, coarse_height, jump.scaled(static_cast<float>(step))))
+          const DepthJump scaled = jump.scaled(static_cast<float>(step));
+          ASSERT_EQ(coarse.triangles[cell], sdc_cell(u, v, subsampled.data.data(), coarse_width, coarse_height, scaled))
               << "frame " << frame << ", level " << level << ", cell " << u << ", " << v;
         }
       }
