@@ -7,6 +7,7 @@
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/core/row_kernel.h"
+#include "zipfusion/depth/sdc_mesh.h"
 
 namespace zipfusion {
 namespace {
@@ -44,10 +45,8 @@ ZF_ROW_KERNEL void accumulate_pairs(const float* __restrict p, const float* __re
 using RowSpan = BilateralRowSpan;
 
 RowSpan depth_span(const float* row, int width) {
-  RowSpan span{0, width - 1};
-  while (span.first < width && !(row[span.first] > 0)) ++span.first;
-  while (span.last >= span.first && !(row[span.last] > 0)) --span.last;
-  return span;
+  const auto [first, end] = positive_span(row, width);
+  return {first, end - 1};
 }
 
 // One output row from the taps that for_each_tap(add) hands out: add(tap_row, offset, spatial)

@@ -25,6 +25,14 @@ ZF_ROW_KERNEL void sdc_row(const float* depth, int width, int count, DepthJump m
   }
 }
 
+void sdc_row_between_spans(const float* depth, int width, int v, std::pair<int, int> above, std::pair<int, int> here, DepthJump max_jump,
+                           std::uint8_t* bits) {
+  const int first = std::max(above.first - 1, here.first), end = std::min(above.second - 1, here.second);
+  if (first >= end) return;
+  const size_t cells = static_cast<size_t>(v - 1) * width + first;
+  sdc_row(depth + cells, width, end - first, max_jump, bits + cells);
+}
+
 ZF_ROW_KERNEL int count_triangles(const std::uint8_t* bits, int count) {
   int triangles = 0;
   for (int i = 0; i < count; ++i) triangles += (bits[i] & kUpperTriangle) + ((bits[i] & kLowerTriangle) >> 1);
@@ -67,22 +75,14 @@ void triangulate_own_depth(int width, int height, const Intrinsics& k, const Rig
   out.rays = PixelRays(k, world_from_depth);
   PixelBox box{width, height, 0, 0};
   const DepthJump max_jump = depth_jump(options);
-  // Each row's span of pixels with depth, [first, end) (empty: first = end). Both triangles of a
-  // cell have the pixels right of and below its own as corners, so the cells of row v − 1 that can
-  // hold one lie where row v − 1's span, one pixel to the left, meets row v's; they are formed
-  // once row v's span is known, and the rest of the box keeps the bits reset_depth_mesh cleared.
-  // The subject fills about a quarter of its box.
-  int previous_first = 0, previous_end = 0;
+  // Row by row: once row v's span of pixels with depth is known, the cells of row v − 1 are formed
+  // (the rest of the box keeps the bits reset_depth_mesh cleared).
+  std::pair<int, int> above{0, 0};
   for (int v = 0; v < height; ++v) {
-    const auto [first, end] = positive_span(out.depth.data() + static_cast<size_t>(v) * width, width);
-    if (first < end) box = {std::min(box.u0, first), std::min(box.v0, v), std::max(box.u1, end), v + 1};
-    const int cell_first = std::max(previous_first - 1, first), cell_end = std::min(previous_end - 1, end);
-    if (cell_first < cell_end) {
-      const size_t cells = static_cast<size_t>(v - 1) * width + cell_first;
-      sdc_row(out.depth.data() + cells, width, cell_end - cell_first, max_jump, out.triangles.data() + cells);
-    }
-    previous_first = first;
-    previous_end = end;
+    const std::pair<int, int> here = positive_span(out.depth.data() + static_cast<size_t>(v) * width, width);
+    if (here.first < here.second) box = {std::min(box.u0, here.first), std::min(box.v0, v), std::max(box.u1, here.second), v + 1};
+    sdc_row_between_spans(out.depth.data(), width, v, above, here, max_jump, out.triangles.data());
+    above = here;
   }
   if (box.empty()) box = {};
   out.depth_box = box;

@@ -133,6 +133,15 @@ inline std::uint8_t sdc_cell(int u, int v, const float* depth, int width, int he
 //! loop that vectorises, for the CPU (a row has a few hundred cells, most without depth).
 void sdc_row(const float* depth, int width, int count, DepthJump max_jump, std::uint8_t* bits);
 
+//! sdc_row for the cells of row v − 1 of an image `width` wide (`depth`, `bits`: the whole image's)
+//! that can hold a triangle, given the spans [first, end) of pixels with depth of rows v − 1
+//! (`above`) and v (`here`), as positive_span finds them. Both triangles of a cell have the pixels
+//! right of and below its own as corners, so such cells lie where `above`, one pixel to the left,
+//! meets `here`; the others' bits are not written (the callers' are 0). A subject fills about a
+//! quarter of its box, so triangulation goes row by row over these cells only.
+void sdc_row_between_spans(const float* depth, int width, int v, std::pair<int, int> above, std::pair<int, int> here, DepthJump max_jump,
+                           std::uint8_t* bits);
+
 //! Element function: does a triangle use pixel p as a vertex, given the bits of p's own cell and
 //! of the cells to its left, above and above-left (0 where a cell does not exist)? p is vertex p
 //! of its own cell's upper triangle, r of both triangles of the cell to its left, b of both of the

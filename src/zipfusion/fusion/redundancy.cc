@@ -655,23 +655,18 @@ void downsample_mesh(const DepthMesh& fine, int level, DepthJump max_depth_jump,
   coarse.depth_box = box;
   // Row by row as triangulate_sdc goes: only the coarse pixels within the span of the fine row's
   // pixels with depth are copied (the others keep the 0 reset_depth_mesh left), and the cells of
-  // the row above are formed where its span, one pixel to the left, meets this row's.
+  // the row above are formed where the spans meet (sdc_row_between_spans).
   const DepthJump threshold = max_depth_jump.scaled(static_cast<float>(step));
-  int previous_first = 0, previous_end = 0;
+  std::pair<int, int> above{0, 0};
   for (int v = box.v0; v < box.v1; ++v) {
     const size_t source_row = static_cast<size_t>(v) * step * fine.width;
     const auto [fine_first, fine_end] = positive_span(fine.depth.data() + source_row + fine_box.u0, fine_box.u1 - fine_box.u0);
-    const int first = fine_first < fine_end ? (fine_box.u0 + fine_first + step - 1) / step : 0;
-    const int end = fine_first < fine_end ? (fine_box.u0 + fine_end + step - 1) / step : 0;
+    std::pair<int, int> here{0, 0};
+    if (fine_first < fine_end) here = {(fine_box.u0 + fine_first + step - 1) / step, (fine_box.u0 + fine_end + step - 1) / step};
     float* row = coarse.depth.data() + static_cast<size_t>(v) * coarse.width;
-    for (int u = first; u < end; ++u) row[u] = fine.depth[source_row + static_cast<size_t>(u) * step];
-    const int cell_first = std::max(previous_first - 1, first), cell_end = std::min(previous_end - 1, end);
-    if (v > box.v0 && cell_first < cell_end) {
-      const size_t cells = static_cast<size_t>(v - 1) * coarse.width + cell_first;
-      sdc_row(coarse.depth.data() + cells, coarse.width, cell_end - cell_first, threshold, coarse.triangles.data() + cells);
-    }
-    previous_first = first;
-    previous_end = end;
+    for (int u = here.first; u < here.second; ++u) row[u] = fine.depth[source_row + static_cast<size_t>(u) * step];
+    sdc_row_between_spans(coarse.depth.data(), coarse.width, v, above, here, threshold, coarse.triangles.data());
+    above = here;
   }
 }
 
