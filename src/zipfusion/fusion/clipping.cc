@@ -10,6 +10,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <span>
+
+#include "zipfusion/fusion/surface_fit.h"
 
 namespace zipfusion {
 namespace {
@@ -482,87 +485,9 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
   }
 }
 
-// Element function: the mean depth of the pixels of `view` around `pixel` (a (2·radius + 1)²
-// window) on the same surface (within the view's SDC threshold); the pixel's own depth for radius 0.
-float smoothed_depth(const MeshView& view, int pixel, int radius) {
-  const float same_surface = view.same_surface;
-  const DepthMesh& mesh = *view.mesh;
-  const int u = pixel % mesh.width, v = pixel / mesh.width;
-  const float centre = mesh.depth[pixel];
-  float sum = 0;
-  int count = 0;
-  // Without branches (which pixels belong is unpredictable at a border): a pixel left out adds
-  // exactly 0, so the sum is the same as adding only the others, in the same order.
-  auto add = [&](float z) {
-    const bool same = z > 0 && std::abs(z - centre) < same_surface;
-    sum += same ? z : 0.0f;
-    count += same;
-  };
-  if (u >= radius && v >= radius && u + radius < mesh.width && v + radius < mesh.height) {
-    const float* row = mesh.depth.data() + pixel - radius * mesh.width - radius;
-    for (int y = 0; y <= 2 * radius; ++y, row += mesh.width) {
-      for (int x = 0; x <= 2 * radius; ++x) add(row[x]);
-    }
-  } else {
-    for (int y = std::max(0, v - radius); y <= std::min(mesh.height - 1, v + radius); ++y) {
-      const float* row = mesh.depth.data() + y * mesh.width;
-      for (int x = std::max(0, u - radius); x <= std::min(mesh.width - 1, u + radius); ++x) add(row[x]);
-    }
-  }
-  return sum / static_cast<float>(count);
-}
-
 // Below this cosine between a point's ray and its surface normal the ray grazes the surface: a
 // small step along the normal is a long one along the ray, so the seam does not move the point.
 constexpr float kGrazingCosine = 0.25f;
-
-// Element function: the least-squares plane z = depth + du·(x − cu) + dv·(y − cv) through the
-// depths of the pixels of `view` on a (2·radius + 1)² grid around `pixel`, `spacing` pixels apart,
-// that lie on its surface (within the view's SDC threshold), x and y in pixels from `pixel`: it
-// passes through their mean depth at their centroid (cu, cv). `sloped` is false where the pixels
-// lie on one line (no slope).
-struct SurfaceFit {
-  float depth = 0, du = 0, dv = 0, cu = 0, cv = 0;
-  bool sloped = false;
-  float depth_at(float x, float y) const { return depth + du * (x - cu) + dv * (y - cv); }
-};
-SurfaceFit fit_surface(const MeshView& view, int pixel, int radius, int spacing = 1) {
-  const DepthMesh& mesh = *view.mesh;
-  const int u = pixel % mesh.width, v = pixel / mesh.width;
-  const float centre = mesh.depth[pixel];
-  float n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sz = 0, sxz = 0, syz = 0;
-  const int reach = radius * spacing;
-  const int x0 = u - std::min(u, reach) / spacing * spacing, x1 = u + std::min(mesh.width - 1 - u, reach) / spacing * spacing;
-  const int y0 = v - std::min(v, reach) / spacing * spacing, y1 = v + std::min(mesh.height - 1 - v, reach) / spacing * spacing;
-  for (int y = y0; y <= y1; y += spacing) {
-    const float* row = mesh.depth.data() + y * mesh.width;
-    // The row's sums first, then weighed by its offset dy (half the work per pixel).
-    float rn = 0, rx = 0, rxx = 0, rz = 0, rxz = 0;
-    float dx = static_cast<float>(x0 - u);
-    for (int x = x0; x <= x1; x += spacing, dx += static_cast<float>(spacing)) {
-      // Without branches (which pixels belong is unpredictable at a border).
-      const float z = row[x];
-      const bool same = (z > 0) & (std::abs(z - centre) < view.same_surface);
-      const float w = same ? 1.0f : 0.0f, wz = same ? z : 0.0f;
-      rn += w, rx += w * dx, rxx += w * dx * dx, rz += wz, rxz += wz * dx;
-    }
-    const float dy = static_cast<float>(y - v);
-    n += rn, sx += rx, sy += rn * dy, sxx += rxx, syy += rn * dy * dy, sxy += rx * dy;
-    sz += rz, sxz += rxz, syz += rz * dy;
-  }
-  SurfaceFit fit;
-  fit.depth = sz / n, fit.cu = sx / n, fit.cv = sy / n;
-  // The slope from the centred sums.
-  const float cxx = sxx - sx * fit.cu, cyy = syy - sy * fit.cv, cxy = sxy - sx * fit.cv;
-  const float cxz = sxz - sx * fit.depth, cyz = syz - sy * fit.depth;
-  const float det = cxx * cyy - cxy * cxy;
-  if (det > 1e-3f * (cxx + cyy) * (cxx + cyy)) {
-    fit.du = (cxz * cyy - cyz * cxy) / det;
-    fit.dv = (cyz * cxx - cxz * cxy) / det;
-    fit.sloped = true;
-  }
-  return fit;
-}
 
 // One mesh's surface as its seam reads it: each pixel on its ray at the mean depth of its surface
 // over the seam's smoothing window (SeamOptions::smoothing_radius; 0: as measured). Unfiltered,
@@ -576,21 +501,33 @@ struct SeamSurface {
   Eigen::Vector3f centre;  // the camera's centre, world
   int radius = 0;
 
-  // The world point of `pixel` and the unit normal of its surface there (either sign; zero where
-  // the window's pixels lie on one line).
-  void point_and_normal(int pixel, Eigen::Vector3f& point, Eigen::Vector3f& normal) const {
+  // The plane fitted for a point's normal: without smoothing (radius 0) over the 3×3 pixels two
+  // apart around it, the cheapest; where the seam smooths, over 5×5 pixels every (1 + radius / 2)th.
+  // On unfiltered depth (radius 2) the Kinect's noise (about 1 cm at 2.5 m) tilts a plane over
+  // ±2 pixels by tens of degrees (samba-4cam frames 0, 10, 20 and 30 unfiltered: 170 folded
+  // edges in the seams with a plane over the 5×5 pixels around, 142 over the 9×9, 140 over every
+  // second of those, 167 over 3×3 pixels four apart, 212 two apart). On filtered depth (radius
+  // 1, ReconstructOptions::seam_smoothing_px) frames 0–39 had 118 folded edges without
+  // smoothing, 103 with only this plane over the 5×5, 103 with only the 3×3 mean, 89 with both.
+  int normal_radius() const { return radius == 0 ? 1 : 2; }
+  int normal_spacing() const { return radius == 0 ? 2 : 1 + radius / 2; }
+
+  // The fits for the normals (fit_surface over normal_radius() and normal_spacing()) and the depths
+  // (smoothed_depth over `radius`; as measured for 0) of `pixels`, all at once (surface_fit.h).
+  void read_points(std::span<const int> pixels, SurfaceFit* fits, float* depths) const {
+    fit_surfaces(view, pixels, normal_radius(), normal_spacing(), fits);
+    if (radius == 0) {
+      for (size_t k = 0; k < pixels.size(); ++k) depths[k] = view.mesh->depth[pixels[k]];
+    } else {
+      smoothed_depths(view, pixels, radius, depths);
+    }
+  }
+
+  // The world point of `pixel` at `depth` (read_points') and the unit normal of its surface there
+  // from `fit` (either sign; zero where the window's pixels lie on one line).
+  void point_and_normal(int pixel, const SurfaceFit& fit, float depth, Eigen::Vector3f& point, Eigen::Vector3f& normal) const {
     const DepthMesh& mesh = *view.mesh;
-    // The plane fitted for the normal: without smoothing (radius 0) over the 3×3 pixels two apart
-    // around it, the cheapest; where the seam smooths, over 5×5 pixels every (1 + radius / 2)th.
-    // On unfiltered depth (radius 2) the Kinect's noise (about 1 cm at 2.5 m) tilts a plane over
-    // ±2 pixels by tens of degrees (samba-4cam frames 0, 10, 20 and 30 unfiltered: 170 folded
-    // edges in the seams with a plane over the 5×5 pixels around, 142 over the 9×9, 140 over every
-    // second of those, 167 over 3×3 pixels four apart, 212 two apart). On filtered depth (radius
-    // 1, ReconstructOptions::seam_smoothing_px) frames 0–39 had 118 folded edges without
-    // smoothing, 103 with only this plane over the 5×5, 103 with only the 3×3 mean, 89 with both.
-    const SurfaceFit fit = radius == 0 ? fit_surface(view, pixel, 1, 2) : fit_surface(view, pixel, 2, 1 + radius / 2);
     const float x = static_cast<float>(pixel % mesh.width), y = static_cast<float>(pixel / mesh.width);
-    const float depth = radius == 0 ? mesh.depth[pixel] : smoothed_depth(view, pixel, radius);
     const Eigen::Vector3f in_camera = unproject(view.intrinsics, x, y, depth);
     point = radius == 0 ? mesh.point(pixel) : world_from_view * in_camera;
     normal.setZero();
@@ -604,10 +541,12 @@ struct SeamSurface {
   }
 
   // The depth of the surface around pixel coordinates q (in the image, with the pixel `cell` at
-  // its integer part), read as the seam reads its own points: interpolated bilinearly over the
-  // pixels of `cell`'s 2×2 within `same_surface` of `near_depth` as measured (radius 0), or from
-  // the plane fitted over the window of the nearest such pixel; 0 where none is.
-  float depth_near(const ViewPoint& q, float near_depth, float same_surface) const {
+  // its integer part), read as the seam reads its own points, in two steps: near_pixel looks at
+  // the pixels of `cell`'s 2×2 within `same_surface` of `near_depth` as measured, and returns the
+  // nearest one's index among them (0–3; −1 where none is); for radius 0, `depth` is then their
+  // depth interpolated bilinearly. Otherwise depth_from_fit reads it from the plane fitted over
+  // the window (fit_surface over `radius`) of that nearest pixel, near_pixel's `pixel`.
+  int near_pixel(const ViewPoint& q, float near_depth, float same_surface, int& pixel, float& depth) const {
     const DepthMesh& mesh = *view.mesh;
     // q lies in the image (its cell is valid), so the floor is a truncation.
     const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
@@ -622,36 +561,46 @@ struct SeamSurface {
       weight += w[k];
       if (nearest < 0 || w[k] > w[nearest]) nearest = k;
     }
-    if (nearest < 0) return 0;
-    if (radius == 0) return weight > 0 ? sum / weight : 0.0f;
-    const SurfaceFit fit = fit_surface(view, pixels[nearest], radius);
+    depth = 0;
+    if (nearest < 0) return -1;
+    pixel = pixels[nearest];
+    if (radius == 0) depth = weight > 0 ? sum / weight : 0.0f;
+    return nearest;
+  }
+  static float depth_from_fit(const ViewPoint& q, int nearest, const SurfaceFit& fit) {
+    const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
     return fit.depth_at(fu - static_cast<float>(nearest & 1), fv - static_cast<float>(nearest >> 1));
   }
 };
 
-// Element function: where the seam puts point p (world) of one mesh, whose surface normal there
-// is `normal` (zero: unknown) and whose camera's ray through it is `ray` (unit), given the other
-// mesh's surface `other` (after Turk and Levoy's consensus geometry): on p's own ray, where it
-// meets the surface halfway between the two meshes' layers. The other layer's point is the other
-// camera's surface point on its ray through p, its depth read around p's projection on the same
-// surface (within `same_surface` of p's depth there) as the seam reads its own points
-// (SeamSurface::depth_near); the two layers are taken as parallel, at the distance of the two
-// points along the normal. p itself where the other camera has no depth on that surface or the
-// ray grazes the surface; the move is at most `same_surface`. Moving along the own ray keeps the
-// point on its pixel, so its kept triangles do not turn over in its own camera.
+// Where the seam puts point p (world) of one mesh, whose surface normal there is `normal` (zero:
+// unknown) and whose camera's ray through it is `ray` (unit), given the other mesh's surface
+// `other` (after Turk and Levoy's consensus geometry): on p's own ray, where it meets the surface
+// halfway between the two meshes' layers. The other layer's point is the other camera's surface
+// point on its ray through p, its depth read around p's projection on the same surface (within
+// `same_surface` of p's depth there) as the seam reads its own points (SeamSurface::near_pixel);
+// the two layers are taken as parallel, at the distance of the two points along the normal. p
+// itself where the other camera has no depth on that surface or the ray grazes the surface; the
+// move is at most `same_surface`. Moving along the own ray keeps the point on its pixel, so its
+// kept triangles do not turn over in its own camera.
 // Laid out side by side in the seam, points of two layers a few millimetres apart in depth made
 // its triangles zigzag between them, at creases sharper than 60°. Before 2026-12-03 the point
 // moved to the place on its ray nearest the midpoint of the two points: cos α of halfway, α the
 // angle between the two cameras' rays, which on a ring of four cameras is near 90° over most of
 // a seam, so it hardly moved (docs/design.md).
-Eigen::Vector3f consensus_point(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray, const SeamSurface& other,
-                                float same_surface) {
-  const float ray_along_normal = ray.dot(normal);
-  if (!(std::abs(ray_along_normal) > kGrazingCosine)) return p;
-  const ViewPoint q = project_into(other.view, p);
-  if (q.cell < 0) return p;
-  const float depth = other.depth_near(q, q.in_camera.z(), same_surface);
+// In two steps, so that the other surface's depths are read for many points at once:
+// consensus_projection gives p's projection q into the other camera, or false where p stays;
+// consensus_move then moves p given the other surface's depth on q's ray (0: none).
+bool consensus_projection(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray, const SeamSurface& other,
+                          ViewPoint& q) {
+  if (!(std::abs(ray.dot(normal)) > kGrazingCosine)) return false;
+  q = project_into(other.view, p);
+  return q.cell >= 0;
+}
+Eigen::Vector3f consensus_move(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray,
+                               const SeamSurface& other, const ViewPoint& q, float depth, float same_surface) {
   if (!(depth > 0)) return p;
+  const float ray_along_normal = ray.dot(normal);
   const Eigen::Vector3f on_other = other.world_from_view * (q.in_camera * (depth / q.in_camera.z()));
   const float step = std::clamp(0.5f * normal.dot(on_other - p) / ray_along_normal, -same_surface, same_surface);
   return p + step * ray;
@@ -1060,22 +1009,65 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
 
   // Where the seam puts its points, formed once (each face reads three): each on its own pixel's
   // ray as its seam reads its surface (SeamSurface), then moved to halfway between the two meshes'
-  // layers (consensus_point), so that the two meshes' points lie close together; after the
-  // triangulation they are faired (fair_seam). The output takes the same positions: where it kept
-  // the measured ones, a face the layout saw from the front could face away in 3-D, folded over
-  // its neighbours.
+  // layers (consensus_projection, consensus_move), so that the two meshes' points lie close
+  // together; after the triangulation they are faired (fair_seam). The output takes the same
+  // positions: where it kept the measured ones, a face the layout saw from the front could face
+  // away in 3-D, folded over its neighbours.
+  const size_t count = seam.vertices.size();
   std::vector<Eigen::Vector3f>& positions = seam.positions;
-  positions.resize(seam.vertices.size());
-  std::vector<Eigen::Vector3f> normals(seam.vertices.size()), rays(seam.vertices.size());
+  positions.resize(count);
+  std::vector<Eigen::Vector3f> normals(count), rays(count);
   const SeamSurface surface_a{a, a.depth_from_world.inverse(Eigen::Isometry), centre_a, options.smoothing_radius};
   const SeamSurface surface_b{b, b.depth_from_world.inverse(Eigen::Isometry), centre_b, options.smoothing_radius};
-  for (size_t i = 0; i < seam.vertices.size(); ++i) {
-    const PixelVertex& v = seam.vertices[i];
-    const SeamSurface &own = v.camera == a.camera ? surface_a : surface_b, &other = v.camera == a.camera ? surface_b : surface_a;
-    Eigen::Vector3f measured;
-    own.point_and_normal(v.pixel, measured, normals[i]);
-    rays[i] = (measured - own.centre).normalized();
-    positions[i] = !taken.shared.empty() && taken.shared[i] ? measured : consensus_point(measured, normals[i], rays[i], other, options.ownership_distance);
+  // Each camera's points read their own surface together (SeamSurface::read_points), then the
+  // other camera's near their projections, also together (SeamSurface::near_pixel, then the fits
+  // at the pixels it found).
+  std::vector<int> own_points, own_pixels, near_index, near_pixels;
+  std::vector<SurfaceFit> fits;
+  std::vector<float> depths;
+  std::vector<ViewPoint> projections(count);
+  std::vector<int> nearest(count, -1);
+  std::vector<float> other_depth(count, 0.0f);
+  for (const SeamSurface* own : {&surface_a, &surface_b}) {
+    const SeamSurface& other = own == &surface_a ? surface_b : surface_a;
+    own_points.clear();
+    own_pixels.clear();
+    for (size_t i = 0; i < count; ++i) {
+      if (seam.vertices[i].camera != own->view.camera) continue;
+      own_points.push_back(static_cast<int>(i));
+      own_pixels.push_back(seam.vertices[i].pixel);
+    }
+    fits.resize(own_pixels.size());
+    depths.resize(own_pixels.size());
+    own->read_points(own_pixels, fits.data(), depths.data());
+    near_index.clear();
+    near_pixels.clear();
+    for (size_t k = 0; k < own_points.size(); ++k) {
+      const int i = own_points[k];
+      own->point_and_normal(own_pixels[k], fits[k], depths[k], positions[i], normals[i]);
+      rays[i] = (positions[i] - own->centre).normalized();
+      // A pixel that is a vertex of two seams keeps its measured place.
+      if (!taken.shared.empty() && taken.shared[i]) continue;
+      ViewPoint& q = projections[i];
+      if (!consensus_projection(positions[i], normals[i], rays[i], other, q)) continue;
+      int pixel = 0;
+      nearest[i] = other.near_pixel(q, q.in_camera.z(), options.ownership_distance, pixel, other_depth[i]);
+      if (nearest[i] >= 0 && other.radius > 0) {
+        near_index.push_back(i);
+        near_pixels.push_back(pixel);
+      }
+    }
+    fits.resize(near_pixels.size());
+    fit_surfaces(other.view, near_pixels, other.radius, 1, fits.data());
+    for (size_t k = 0; k < near_index.size(); ++k) {
+      const int i = near_index[k];
+      other_depth[i] = SeamSurface::depth_from_fit(projections[i], nearest[i], fits[k]);
+    }
+    for (const int i : own_points) {
+      if (nearest[i] >= 0) {
+        positions[i] = consensus_move(positions[i], normals[i], rays[i], other, projections[i], other_depth[i], options.ownership_distance);
+      }
+    }
   }
 
   // The virtual camera halfway between the two.

@@ -151,9 +151,9 @@ TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
 // leave them: the seam joins them without creases (count_folded_edges: two triangles' normals
 // more than 120° apart). Points of both layers laid out side by side made the seam's triangles
 // zigzag between the layers: 96, 141 and 166 creases for 2, 4 and 6 mm before seam points were
-// moved towards the other layer (consensus_point) and creases flipped out (75, 113 and 141 with
-// the flips alone; 0, 2 and 4 with both while the consensus moved points cos α of halfway, before
-// the seam was faired). Neither may open a hole.
+// moved towards the other layer (consensus_projection, consensus_move) and creases flipped out
+// (75, 113 and 141 with the flips alone; 0, 2 and 4 with both while the consensus moved points
+// cos α of halfway, before the seam was faired). Neither may open a hole.
 TEST(Zipper, SeamBetweenOffsetLayersDoesNotCrease) {
   for (const float offset : {0.002f, 0.004f, 0.006f}) {
     const TriangleMesh wall = wall_mesh();
