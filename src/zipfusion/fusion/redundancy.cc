@@ -18,37 +18,25 @@ void enqueue(FrbrScratch& s, int id) {
 }
 
 
-// A candidate of a sweep: a triangle of a, its centre's pixel coordinates in a, and the centre
-// as b sees it.
-struct SweepTest {
-  int id;
-  float a_x, a_y;
-  ViewPoint centre;
-};
-
-// How many of a sweep's tests go through each pass together (a few kilobytes: they stay in the
-// first-level cache between the passes).
-constexpr int kSweepBlock = 128;
-
 // One FRBR sweep of `a` against `b` over a's worklist: removes the redundant ones and queues their
 // neighbours (the new boundary) for the next sweep. Returns the number removed.
-// The tests go in blocks, each in three passes: the candidates' centres and projections, then
-// the ownership test, then the search for b's triangles near those b owns. Each pass's reads
-// (a's depth, then the score maps and b's depth near the projection) miss the cache at
-// scattered boundary pixels; one test after another, each waited on the last one's misses,
-// while within a pass they are independent and overlap. The tests read only the bit matrices
-// as the sweep found them (its removals are cleared after it), so the passes give the removals
-// a single loop gave, in the same order.
+// The tests go in blocks (TriangleTestBlock), each in three passes: the candidates' centres and
+// projections, then the ownership test, then the search for b's triangles near those b owns. The
+// first two are row kernels over the block; each pass's reads (a's depth, then the score maps
+// and b's depth near the projection) miss the cache at scattered boundary pixels, and within a
+// pass they are independent and overlap. The tests read only the bit matrices as the sweep
+// found them (its removals are cleared after it), so the passes give the removals a single loop
+// gave, in the same order.
 int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   const Rigid3f b_from_a_camera = b_from_a(a, b);
   s.removals.clear();
-  SweepTest tests[kSweepBlock];
-  int owned[kSweepBlock];
+  TriangleTestBlock block;
+  int owned[TriangleTestBlock::kCapacity];
   const size_t count = s.worklist.size();
-  for (size_t first = 0; first < count; first += kSweepBlock) {
-    const size_t last = std::min(count, first + kSweepBlock);
-    int n = 0;
+  for (size_t first = 0; first < count; first += TriangleTestBlock::kCapacity) {
+    const size_t last = std::min(count, first + TriangleTestBlock::kCapacity);
+    block.count = 0;
     for (size_t k = first; k < last; ++k) {
       const int id = s.worklist[k];
       const int cell = cell_of(id);
@@ -57,17 +45,12 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
       const int v = cell / mesh.width, u = cell - v * mesh.width;
       if (!mask.covers_at(u, v, a.level)) continue;
       if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
-      // The centre lies a third (upper) or two thirds (lower) into the cell.
-      const float offset = bit == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
-      tests[n++] = {id, static_cast<float>(u) + offset, static_cast<float>(v) + offset,
-                    project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, u, v, bit))};
+      block.add(id, u, v);
     }
-    int m = 0;
-    for (int k = 0; k < n; ++k) {
-      if (owner_is_other(a, tests[k].a_x, tests[k].a_y, b, tests[k].centre, 2 * distance)) owned[m++] = k;
-    }
+    project_triangle_centres(a, b, b_from_a_camera, block);
+    const int m = select_owned_by_other(a, b, 2 * distance, block, owned);
     for (int k = 0; k < m; ++k) {
-      if (has_triangle_near(b, tests[owned[k]].centre, distance)) s.removals.push_back(tests[owned[k]].id);
+      if (has_triangle_near(b, block.centre(owned[k]), distance)) s.removals.push_back(block.id[owned[k]]);
     }
   }
   for (int id : s.worklist) s.queued.clear(id);  // queued by the previous pass
@@ -184,6 +167,113 @@ bool owner_is_other(const MeshView& a, float a_x, float a_y, const MeshView& b, 
   const float mine = a.score_at(a_x, a_y), theirs = b.score_at(p.x, p.y);
   if (!(theirs > mine || (theirs == mine && b.camera < a.camera))) return false;
   return may_see_point(b, p, depth_tolerance);
+}
+
+namespace {
+
+// The row form of camera_triangle_centre, then of b_from_a_camera · centre and
+// project_camera_point, over a block's tests (the same operations on each, in the same order):
+// `upper` is 1 for an upper triangle; `m` the rotation row by row, `t` the translation.
+ZF_ROW_KERNEL void project_centres_row(const float* __restrict depth, int a_width, float a_cx, float a_cy, float third_over_fx,
+                                       float third_over_fy, const float* __restrict m, const float* __restrict t, float b_fx, float b_fy,
+                                       float b_cx, float b_cy, float last_x, float last_y, int b_width, const int* __restrict u,
+                                       const int* __restrict v, const unsigned* __restrict upper, int count, float* __restrict b_x,
+                                       float* __restrict b_y, float* __restrict b_z, float* __restrict x, float* __restrict y,
+                                       int* __restrict cell) {
+  const float third = 1.0f / 3.0f;
+  for (int i = 0; i < count; ++i) {
+    const int k = v[i] * a_width + u[i];
+    // Triangles lie in cells off the image's last row and column: the fourth depth exists.
+    const float z00 = depth[k], z10 = depth[k + 1], z01 = depth[k + a_width], z11 = depth[k + a_width + 1];
+    const float cu = static_cast<float>(u[i]) - a_cx, cv = static_cast<float>(v[i]) - a_cy;
+    const float sum = select_if(upper[i], z00 + z01 + z10, z10 + z01 + z11);
+    const float x_extra = select_if(upper[i], z10, z10 + z11), y_extra = select_if(upper[i], z01, z01 + z11);
+    const float c0 = (cu * sum + x_extra) * third_over_fx, c1 = (cv * sum + y_extra) * third_over_fy, c2 = sum * third;
+    const float p0 = m[0] * c0 + m[1] * c1 + m[2] * c2 + t[0];
+    const float p1 = m[3] * c0 + m[4] * c1 + m[5] * c2 + t[1];
+    const float p2 = m[6] * c0 + m[7] * c1 + m[8] * c2 + t[2];
+    const unsigned in_front = p2 > 0;
+    const float inv_z = 1.0f / select_if(in_front, p2, 1.0f);
+    const float px = select_if(in_front, b_fx * p0 * inv_z + b_cx, 0.0f), py = select_if(in_front, b_fy * p1 * inv_z + b_cy, 0.0f);
+    const unsigned inside = in_front & (px >= 0) & (py >= 0) & (px < last_x) & (py < last_y);
+    b_x[i] = p0, b_y[i] = p1, b_z[i] = p2, x[i] = px, y[i] = py;
+    // Truncated only where inside (the coordinates of an outside point may not fit an int).
+    cell[i] = inside ? static_cast<int>(select_if(inside, py, 0.0f)) * b_width + static_cast<int>(select_if(inside, px, 0.0f)) : -1;
+  }
+}
+
+// The row form of ownership_score_at (a score map's cells with their zero border, `stride` a row).
+inline float score_lookup(const float* __restrict cells, int stride, float width_f, float height_f, float cells_per_pixel, float px, float py) {
+  const float cx = px * cells_per_pixel - 0.5f, cy = py * cells_per_pixel - 0.5f;
+  const unsigned inside = (cx > -1.0f) & (cy > -1.0f) & (cx < width_f) & (cy < height_f);
+  // Outside, a cell that exists is read and the answer thrown away.
+  const float sx = select_if(inside, cx, 0.0f), sy = select_if(inside, cy, 0.0f);
+  const int u = floor_to_int(sx), v = floor_to_int(sy);
+  const float fu = sx - static_cast<float>(u), fv = sy - static_cast<float>(v);
+  const int k = (v + 1) * stride + u + 1;  // cell (u, v); (u, v + 1) is a row further
+  const float top = cells[k] + fu * (cells[k + 1] - cells[k]);
+  const float bottom = cells[k + stride] + fu * (cells[k + stride + 1] - cells[k + stride]);
+  return select_if(inside, top + fv * (bottom - top), 0.0f);
+}
+
+// The row form of owner_is_other over a block's tests (b's score map and a's both exist): 1 where b
+// owns the centre.
+ZF_ROW_KERNEL void owned_by_other_row(const float* __restrict a_cells, int a_stride, float a_width_f, float a_height_f,
+                                      float a_cells_per_pixel, const float* __restrict b_cells, int b_stride, float b_width_f,
+                                      float b_height_f, float b_cells_per_pixel, unsigned b_wins_ties, const float* __restrict b_depth,
+                                      int b_width, float depth_tolerance, const float* __restrict a_x, const float* __restrict a_y,
+                                      const float* __restrict x, const float* __restrict y, const float* __restrict z,
+                                      const int* __restrict cell, int count, unsigned* __restrict owned) {
+  for (int i = 0; i < count; ++i) {
+    const unsigned valid = cell[i] >= 0;
+    const float mine = score_lookup(a_cells, a_stride, a_width_f, a_height_f, a_cells_per_pixel, a_x[i], a_y[i]);
+    const float theirs = score_lookup(b_cells, b_stride, b_width_f, b_height_f, b_cells_per_pixel, x[i], y[i]);
+    const unsigned theirs_wins = (theirs > mine) | ((theirs == mine) & b_wins_ties);
+    // may_see_point: b has no depth, or depth near the centre's, at one of the 2×2 pixels.
+    const int k = valid ? cell[i] : 0;
+    const float z00 = b_depth[k], z10 = b_depth[k + 1], z01 = b_depth[k + b_width], z11 = b_depth[k + b_width + 1];
+    const unsigned may_see = (z00 <= 0) | (std::abs(z00 - z[i]) < depth_tolerance) | (z10 <= 0) | (std::abs(z10 - z[i]) < depth_tolerance) |
+                             (z01 <= 0) | (std::abs(z01 - z[i]) < depth_tolerance) | (z11 <= 0) | (std::abs(z11 - z[i]) < depth_tolerance);
+    owned[i] = valid & theirs_wins & may_see;
+  }
+}
+
+}  // namespace
+
+void project_triangle_centres(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, TriangleTestBlock& block) {
+  unsigned upper[TriangleTestBlock::kCapacity];
+  for (int i = 0; i < block.count; ++i) upper[i] = bit_of(block.id[i]) == kUpperTriangle;
+  float m[9], t[3];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) m[r * 3 + c] = b_from_a_camera.linear()(r, c);
+    t[r] = b_from_a_camera.translation()(r);
+  }
+  project_centres_row(a.mesh->depth.data(), a.mesh->width, a.cx, a.cy, a.third_over_fx, a.third_over_fy, m, t, b.fx, b.fy, b.cx, b.cy,
+                      b.last_x, b.last_y, b.mesh->width, block.u, block.v, upper, block.count, block.b_x, block.b_y, block.b_z, block.x,
+                      block.y, block.cell);
+}
+
+int select_owned_by_other(const MeshView& a, const MeshView& b, float depth_tolerance, const TriangleTestBlock& block, int* owned) {
+  int n = 0;
+  if (b.ownership == nullptr) return 0;
+  if (a.ownership == nullptr) {  // a scores 0 everywhere: the element function
+    for (int i = 0; i < block.count; ++i) {
+      if (owner_is_other(a, block.a_x[i], block.a_y[i], b, block.centre(i), depth_tolerance)) owned[n++] = i;
+    }
+    return n;
+  }
+  auto cells_per_pixel = [](const MeshView& view) {
+    return std::bit_cast<float>(static_cast<std::uint32_t>(127 + view.level - view.ownership->level) << 23);
+  };
+  const OwnershipScore &qa = *a.ownership, &qb = *b.ownership;
+  unsigned flags[TriangleTestBlock::kCapacity];
+  owned_by_other_row(qa.cells.data(), qa.stride, qa.width_f, qa.height_f, cells_per_pixel(a), qb.cells.data(), qb.stride, qb.width_f,
+                     qb.height_f, cells_per_pixel(b), b.camera < a.camera, b.mesh->depth.data(), b.mesh->width, depth_tolerance, block.a_x,
+                     block.a_y, block.x, block.y, block.b_z, block.cell, block.count, flags);
+  for (int i = 0; i < block.count; ++i) {
+    if (flags[i]) owned[n++] = i;
+  }
+  return n;
 }
 
 namespace {

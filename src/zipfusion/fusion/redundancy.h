@@ -299,6 +299,40 @@ inline int triangle_neighbours(int id, int width, int out[3]) {
 //! formed.
 bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance, int max_window = 4);
 
+//! A block of FRBR's tests of triangles of a against b, in the form its row kernels read and
+//! write (a column per test): the triangles, then their centres as b sees them.
+struct TriangleTestBlock {
+  static constexpr int kCapacity = 128;  // a few kilobytes: the block stays in the first-level cache
+  int count = 0;
+  int id[kCapacity], u[kCapacity], v[kCapacity];  // the triangle and its cell
+  float a_x[kCapacity], a_y[kCapacity];            // its centre's pixel coordinates in a
+  // project_triangle_centres: the centre in b's camera frame, its pixel coordinates and cell in b
+  float b_x[kCapacity], b_y[kCapacity], b_z[kCapacity], x[kCapacity], y[kCapacity];
+  int cell[kCapacity];
+
+  void add(int triangle, int cell_u, int cell_v) {
+    // The centre lies a third (upper) or two thirds (lower) into the cell.
+    const float offset = bit_of(triangle) == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
+    id[count] = triangle, u[count] = cell_u, v[count] = cell_v;
+    a_x[count] = static_cast<float>(cell_u) + offset, a_y[count] = static_cast<float>(cell_v) + offset;
+    ++count;
+  }
+  ViewPoint centre(int i) const {
+    ViewPoint p;
+    p.in_camera = {b_x[i], b_y[i], b_z[i]};
+    p.x = x[i], p.y = y[i], p.cell = cell[i];
+    return p;
+  }
+};
+
+//! For every test of the block: centre(i) = project_camera_point(b, b_from_a_camera ·
+//! camera_triangle_centre(a, u, v, bit)), the same floats, as a row kernel over the tests.
+void project_triangle_centres(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, TriangleTestBlock& block);
+
+//! The tests i of the block with owner_is_other(a, a_x, a_y, b, centre(i), depth_tolerance), in
+//! order, into `owned`; returns how many. The same answers, as a row kernel over the tests.
+int select_owned_by_other(const MeshView& a, const MeshView& b, float depth_tolerance, const TriangleTestBlock& block, int* owned);
+
 //! Calls f(id) for every existing triangle of `mesh`, in id order.
 template <typename F>
 void for_each_triangle_id(const DepthMesh& mesh, F&& f) {

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -279,6 +280,80 @@ TEST(Redundancy, BoundaryTrianglesAreThoseTheElementTestFinds) {
     EXPECT_GT(expected.size(), 100u);
     EXPECT_EQ(found, expected);
   }
+}
+
+TEST(Redundancy, TestBlockKernelsGiveTheElementFunctionsFloatsAndAnswers) {
+  // Every triangle of one view of the wall tested against the other: the projections of their
+  // centres (project_triangle_centres) and who owns them (select_owned_by_other) must be those of
+  // project_camera_point and owner_is_other, bit for bit. The other view is turned a little
+  // (every entry of the rotation between the two nonzero) and far (centres off its image or
+  // behind it), and each camera is tested as a and as b. Ownership is the distance to each mesh's
+  // border on its coarse level, or 1 on every cell of it (ties everywhere, which go to the lower
+  // camera).
+  const Scene scene = two_views_of(wall_mesh());
+  std::vector<DepthMesh> meshes = scene.meshes, coarse(2);
+  std::vector<OwnershipScore> border(2), flat(2);
+  for (int c = 0; c < 2; ++c) {
+    downsample_mesh(meshes[c], 1, DepthJump{}, coarse[c]);
+    compute_border_distance(coarse[c], 1, 2, border[c]);
+    flat[c] = border[c];
+    for (int v = 0; v < flat[c].height; ++v) {
+      for (int u = 0; u < flat[c].width; ++u) flat[c].cell(u, v) = 1.0f;
+    }
+    // Pixels without depth, each the last of a 2×2 whose other three have depth: there only that
+    // pixel lets b see a point off its surface.
+    for (int v = 1; v < kKinect.height; v += 4) {
+      for (int u = 1; u < kKinect.width; u += 4) meshes[c].depth[v * kKinect.width + u] = 0;
+    }
+  }
+  auto view = [&](int c, const Rigid3f& turn, const OwnershipScore* score) {
+    return MeshView{&meshes[c], kKinect, turn * scene.models[c].world_from_depth.inverse().cast<float>(), score, c, 0};
+  };
+  auto same_bits = [](float x, float y) { return std::bit_cast<std::uint32_t>(x) == std::bit_cast<std::uint32_t>(y); };
+  int outside = 0, owned_total = 0, tested = 0;
+  for (const float turn_deg : {3.0f, 50.0f, 180.0f}) {
+    const Rigid3f turn(Eigen::AngleAxisf(turn_deg * std::numbers::pi_v<float> / 180, Eigen::Vector3f(0.2f, 1.0f, 0.3f).normalized()));
+    for (const auto& [a_camera, b_camera] : {std::pair{0, 1}, std::pair{1, 0}}) {
+      for (const std::vector<OwnershipScore>* scores : {&border, &flat}) {
+        for (const bool a_scored : {true, false}) {
+          const MeshView a = view(a_camera, Rigid3f::Identity(), a_scored ? &(*scores)[a_camera] : nullptr);
+          const MeshView b = view(b_camera, turn, &(*scores)[b_camera]);
+          const Rigid3f b_from_a_camera = b_from_a(a, b);
+          std::vector<int> ids;
+          for_each_triangle_id(meshes[a_camera], [&](int id) { ids.push_back(id); });
+          TriangleTestBlock block;
+          int owned[TriangleTestBlock::kCapacity];
+          for (size_t first = 0; first < ids.size(); first += TriangleTestBlock::kCapacity) {
+            block.count = 0;
+            for (size_t k = first; k < std::min(ids.size(), first + TriangleTestBlock::kCapacity); ++k) {
+              const int cell = cell_of(ids[k]);
+              block.add(ids[k], cell % kKinect.width, cell / kKinect.width);
+            }
+            project_triangle_centres(a, b, b_from_a_camera, block);
+            const int m = select_owned_by_other(a, b, 0.06f, block, owned);
+            std::vector<int> expected_owned;
+            for (int i = 0; i < block.count; ++i) {
+              const ViewPoint one =
+                  project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, block.u[i], block.v[i], bit_of(block.id[i])));
+              const ViewPoint many = block.centre(i);
+              ASSERT_TRUE(same_bits(many.in_camera.x(), one.in_camera.x()) && same_bits(many.in_camera.y(), one.in_camera.y()) &&
+                          same_bits(many.in_camera.z(), one.in_camera.z()) && same_bits(many.x, one.x) && same_bits(many.y, one.y) &&
+                          many.cell == one.cell)
+                  << "triangle " << block.id[i] << ", turned " << turn_deg << "°: (" << many.x << ", " << many.y << ") cell " << many.cell
+                  << " against (" << one.x << ", " << one.y << ") cell " << one.cell;
+              if (owner_is_other(a, block.a_x[i], block.a_y[i], b, one, 0.06f)) expected_owned.push_back(i);
+              outside += one.cell < 0;
+            }
+            ASSERT_EQ(std::vector<int>(owned, owned + m), expected_owned) << "turned " << turn_deg << "°, a camera " << a_camera;
+            owned_total += m;
+            tested += block.count;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(outside, tested / 4);      // off the image or behind it
+  EXPECT_GT(owned_total, tested / 20);  // and owned by b, for some
 }
 
 TEST(Redundancy, OverlapReachesDecidesAsTheFullShareWould) {
