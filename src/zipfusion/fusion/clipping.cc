@@ -93,7 +93,17 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const SeamScratch
 void project_seeds(const MeshView& view, const MeshView& other, SeamScratch& s) {
   const Rigid3f other_from_view = b_from_a(view, other);
   s.seeds_in_other.clear();
-  for (int id : s.seeds) s.seeds_in_other.push_back(project_camera_point(other, other_from_view * camera_triangle_centre(view, cell_of(id), bit_of(id))));
+  // A block of seeds at a time, through FRBR's row kernel.
+  TriangleTestBlock block;
+  for (size_t first = 0; first < s.seeds.size(); first += TriangleTestBlock::kCapacity) {
+    block.count = 0;
+    for (size_t k = first; k < std::min(s.seeds.size(), first + TriangleTestBlock::kCapacity); ++k) {
+      const int cell = cell_of(s.seeds[k]);
+      block.add(s.seeds[k], cell % view.mesh->width, cell / view.mesh->width);
+    }
+    project_triangle_centres(view, other, other_from_view, block);
+    for (int i = 0; i < block.count; ++i) s.seeds_in_other.push_back(block.centre(i));
+  }
 }
 
 // The triangle bits of cell (cu, cv) of `mesh`, 0 for a cell outside it.
