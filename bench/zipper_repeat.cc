@@ -122,6 +122,12 @@ int main(int argc, char** argv) {
     for (const unsigned char channel : {c.r, c.g, c.b}) colour_fingerprint = (colour_fingerprint ^ channel) * 0x100000001b3ull;
   }
   std::printf("colour fingerprint %016llx\n", static_cast<unsigned long long>(colour_fingerprint));
+  // The vertices' positions, bit for bit, in their order: where the seams put their points.
+  std::uint64_t position_fingerprint = 0xcbf29ce484222325ull;
+  for (const Eigen::Vector3f& p : result.mesh.positions) {
+    for (int k = 0; k < 3; ++k) position_fingerprint = (position_fingerprint ^ std::bit_cast<std::uint32_t>(p[k])) * 0x100000001b3ull;
+  }
+  std::printf("position fingerprint %016llx\n", static_cast<unsigned long long>(position_fingerprint));
   std::printf("median of %d on %d thread(s):", repeat, threads);
   for (size_t k = 0; k < stages.size(); ++k) std::printf("%s %s %.2f ms", k ? "," : "", stages[k].first, stage_ms[k][repeat / 2]);
   std::printf("\n");

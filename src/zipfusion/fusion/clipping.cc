@@ -82,7 +82,7 @@ void find_seam_triangles(const MeshView& a, const MeshView& b, const SeamScratch
     if (under < 0 || !mesh.triangles[under]) continue;
     for (TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
       const int id = triangle_id(under, bit);
-      if (first_visit(id)) test(id, project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, under, bit)));
+      if (first_visit(id)) test(id, project_camera_point(b, transform_point(b_from_a_camera, camera_triangle_centre(a, under, bit))));
     }
   }
   for (int id : s.visited) s.marks.clear(id);
@@ -550,36 +550,41 @@ struct SeamSurface {
     normal = (world_from_view.linear() * along_x.cross(along_y)).normalized();
   }
 
-  // The depth of the surface around pixel coordinates q (in the image, with the pixel `cell` at
-  // its integer part), read as the seam reads its own points, in two steps: near_pixel looks at
-  // the pixels of `cell`'s 2×2 within `same_surface` of `near_depth` as measured, and returns the
-  // nearest one's index among them (0–3; −1 where none is); for radius 0, `depth` is then their
-  // depth interpolated bilinearly. Otherwise depth_from_fit reads it from the plane fitted over
-  // the window (fit_surface over `radius`) of that nearest pixel, near_pixel's `pixel`.
-  int near_pixel(const ViewPoint& q, float near_depth, float same_surface, int& pixel, float& depth) const {
+  // Where the surface lies around pixel coordinates q (in the image, with the pixel `cell` at its
+  // integer part), read as the seam reads its own points, in two steps. near_pixel looks at the
+  // pixels of `cell`'s 2×2 within `same_surface` of `near_depth` as measured: the nearest of them
+  // (none where none is) and, for radius 0, their depth interpolated bilinearly. Otherwise
+  // depth_from_fit reads the depth from the plane fitted over the window of that nearest pixel
+  // (fit_surface over `radius`); 0 stands for no depth.
+  struct NearPixel {
+    int corner = -1;  // the nearest pixel's place in the 2×2 (bit 0: right, bit 1: below); −1: none
+    int pixel = 0;
+    float fu = 0, fv = 0;  // q's offset from the 2×2's top left pixel
+    float depth = 0;       // radius 0: the bilinear depth
+  };
+  NearPixel near_pixel(const ViewPoint& q, float near_depth, float same_surface) const {
     const DepthMesh& mesh = *view.mesh;
+    NearPixel near;
     // q lies in the image (its cell is valid), so the floor is a truncation.
-    const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
+    near.fu = q.x - static_cast<float>(static_cast<int>(q.x)), near.fv = q.y - static_cast<float>(static_cast<int>(q.y));
+    const float fu = near.fu, fv = near.fv;
     const int pixels[4] = {q.cell, q.cell + 1, q.cell + mesh.width, q.cell + mesh.width + 1};
     const float w[4] = {(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv};
     float sum = 0, weight = 0;
-    int nearest = -1;
     for (int k = 0; k < 4; ++k) {
       const float z = mesh.depth[pixels[k]];
       if (!(z > 0 && std::abs(z - near_depth) < same_surface)) continue;
       sum += w[k] * z;
       weight += w[k];
-      if (nearest < 0 || w[k] > w[nearest]) nearest = k;
+      if (near.corner < 0 || w[k] > w[near.corner]) near.corner = k;
     }
-    depth = 0;
-    if (nearest < 0) return -1;
-    pixel = pixels[nearest];
-    if (radius == 0) depth = weight > 0 ? sum / weight : 0.0f;
-    return nearest;
+    if (near.corner < 0) return near;
+    near.pixel = pixels[near.corner];
+    if (radius == 0) near.depth = weight > 0 ? sum / weight : 0.0f;
+    return near;
   }
-  static float depth_from_fit(const ViewPoint& q, int nearest, const SurfaceFit& fit) {
-    const float fu = q.x - static_cast<float>(static_cast<int>(q.x)), fv = q.y - static_cast<float>(static_cast<int>(q.y));
-    return fit.depth_at(fu - static_cast<float>(nearest & 1), fv - static_cast<float>(nearest >> 1));
+  static float depth_from_fit(const NearPixel& near, const SurfaceFit& fit) {
+    return fit.depth_at(near.fu - static_cast<float>(near.corner & 1), near.fv - static_cast<float>(near.corner >> 1));
   }
 };
 
@@ -599,13 +604,12 @@ struct SeamSurface {
 // angle between the two cameras' rays, which on a ring of four cameras is near 90° over most of
 // a seam, so it hardly moved (docs/design.md).
 // In two steps, so that the other surface's depths are read for many points at once:
-// consensus_projection gives p's projection q into the other camera, or false where p stays;
+// consensus_projection gives p's projection q into the other camera (cell −1 where p stays);
 // consensus_move then moves p given the other surface's depth on q's ray (0: none).
-bool consensus_projection(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray, const SeamSurface& other,
-                          ViewPoint& q) {
-  if (!(std::abs(ray.dot(normal)) > kGrazingCosine)) return false;
-  q = project_into(other.view, p);
-  return q.cell >= 0;
+ViewPoint consensus_projection(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray,
+                               const SeamSurface& other) {
+  if (!(std::abs(ray.dot(normal)) > kGrazingCosine)) return {};
+  return project_into(other.view, p);
 }
 Eigen::Vector3f consensus_move(const Eigen::Vector3f& p, const Eigen::Vector3f& normal, const Eigen::Vector3f& ray,
                                const SeamSurface& other, const ViewPoint& q, float depth, float same_surface) {
@@ -1036,8 +1040,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   std::vector<SurfaceFit> fits;
   std::vector<float> depths;
   std::vector<ViewPoint> projections(count);
-  std::vector<int> nearest(count, -1);
-  std::vector<float> other_depth(count, 0.0f);
+  std::vector<SeamSurface::NearPixel> near(count);
   for (const SeamSurface* own : {&surface_a, &surface_b}) {
     const SeamSurface& other = own == &surface_a ? surface_b : surface_a;
     own_points.clear();
@@ -1058,24 +1061,20 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
       rays[i] = (positions[i] - own->centre).normalized();
       // A pixel that is a vertex of two seams keeps its measured place.
       if (!taken.shared.empty() && taken.shared[i]) continue;
-      ViewPoint& q = projections[i];
-      if (!consensus_projection(positions[i], normals[i], rays[i], other, q)) continue;
-      int pixel = 0;
-      nearest[i] = other.near_pixel(q, q.in_camera.z(), options.ownership_distance, pixel, other_depth[i]);
-      if (nearest[i] >= 0 && other.radius > 0) {
+      const ViewPoint& q = projections[i] = consensus_projection(positions[i], normals[i], rays[i], other);
+      if (q.cell < 0) continue;
+      near[i] = other.near_pixel(q, q.in_camera.z(), options.ownership_distance);
+      if (near[i].corner >= 0 && other.radius > 0) {
         near_index.push_back(i);
-        near_pixels.push_back(pixel);
+        near_pixels.push_back(near[i].pixel);
       }
     }
     fits.resize(near_pixels.size());
     fit_surfaces(other.view, near_pixels, other.radius, 1, fits.data());
-    for (size_t k = 0; k < near_index.size(); ++k) {
-      const int i = near_index[k];
-      other_depth[i] = SeamSurface::depth_from_fit(projections[i], nearest[i], fits[k]);
-    }
+    for (size_t k = 0; k < near_index.size(); ++k) near[near_index[k]].depth = SeamSurface::depth_from_fit(near[near_index[k]], fits[k]);
     for (const int i : own_points) {
-      if (nearest[i] >= 0) {
-        positions[i] = consensus_move(positions[i], normals[i], rays[i], other, projections[i], other_depth[i], options.ownership_distance);
+      if (near[i].corner >= 0) {
+        positions[i] = consensus_move(positions[i], normals[i], rays[i], other, projections[i], near[i].depth, options.ownership_distance);
       }
     }
   }

@@ -1,6 +1,7 @@
 #include "zipfusion/fusion/redundancy.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 #include <numbers>
@@ -203,7 +204,8 @@ ZF_ROW_KERNEL void project_centres_row(const float* __restrict depth, int a_widt
 }
 
 // The row form of ownership_score_at (a score map's cells with their zero border, `stride` a row).
-inline float score_lookup(const float* __restrict cells, int stride, float width_f, float height_f, float cells_per_pixel, float px, float py) {
+inline float score_lookup(const float* __restrict cells, int stride, float width_f, float height_f, float cells_per_pixel, float px,
+                          float py) {
   const float cx = px * cells_per_pixel - 0.5f, cy = py * cells_per_pixel - 0.5f;
   const unsigned inside = (cx > -1.0f) & (cy > -1.0f) & (cx < width_f) & (cy < height_f);
   // Outside, a cell that exists is read and the answer thrown away.
@@ -242,7 +244,10 @@ ZF_ROW_KERNEL void owned_by_other_row(const float* __restrict a_cells, int a_str
 
 void project_triangle_centres(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, TriangleTestBlock& block) {
   unsigned upper[TriangleTestBlock::kCapacity];
-  for (int i = 0; i < block.count; ++i) upper[i] = bit_of(block.id[i]) == kUpperTriangle;
+  for (int i = 0; i < block.count; ++i) {
+    assert(block.u[i] >= 0 && block.v[i] >= 0 && block.u[i] < a.mesh->width - 1 && block.v[i] < a.mesh->height - 1);
+    upper[i] = bit_of(block.id[i]) == kUpperTriangle;
+  }
   float m[9], t[3];
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) m[r * 3 + c] = b_from_a_camera.linear()(r, c);
@@ -648,8 +653,8 @@ void for_each_sampled_cell(const DepthMesh& mesh, F&& f) {
 // (outside its image, or another surface in front or behind) are answered without a search.
 bool sampled_triangle_near(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, float distance, int cell,
                            std::uint8_t bits) {
-  const ViewPoint centre =
-      project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, cell, (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle));
+  const TriangleBit bit = (bits & kUpperTriangle) ? kUpperTriangle : kLowerTriangle;
+  const ViewPoint centre = project_camera_point(b, transform_point(b_from_a_camera, camera_triangle_centre(a, cell, bit)));
   return may_see_surface(b, centre, 2 * distance) && has_triangle_near(b, centre, distance);
 }
 

@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <utility>
@@ -205,6 +206,15 @@ inline ViewPoint project_camera_point(const MeshView& view, const Eigen::Vector3
   return out;
 }
 
+//! Element function: t · p, each row's products added left to right, then the translation. This
+//! fixes the order that project_centres_row (FRBR's row kernel) repeats: Eigen's own product adds
+//! in an order of its choosing, and fuses the multiply-adds where the instruction set has them.
+inline Eigen::Vector3f transform_point(const Rigid3f& t, const Eigen::Vector3f& p) {
+  const Eigen::Matrix4f& m = t.matrix();
+  return {m(0, 0) * p.x() + m(0, 1) * p.y() + m(0, 2) * p.z() + m(0, 3), m(1, 0) * p.x() + m(1, 1) * p.y() + m(1, 2) * p.z() + m(1, 3),
+          m(2, 0) * p.x() + m(2, 1) * p.y() + m(2, 2) * p.z() + m(2, 3)};
+}
+
 //! Element function: projects world point p into `view`.
 inline ViewPoint project_into(const MeshView& view, const Eigen::Vector3f& p) { return project_camera_point(view, view.depth_from_world * p); }
 
@@ -311,6 +321,7 @@ struct TriangleTestBlock {
   int cell[kCapacity];
 
   void add(int triangle, int cell_u, int cell_v) {
+    assert(count < kCapacity);
     // The centre lies a third (upper) or two thirds (lower) into the cell.
     const float offset = bit_of(triangle) == kUpperTriangle ? 1.0f / 3.0f : 2.0f / 3.0f;
     id[count] = triangle, u[count] = cell_u, v[count] = cell_v;
@@ -325,8 +336,10 @@ struct TriangleTestBlock {
   }
 };
 
-//! For every test of the block: centre(i) = project_camera_point(b, b_from_a_camera ·
-//! camera_triangle_centre(a, u, v, bit)), the same floats, as a row kernel over the tests.
+//! For every test of the block: centre(i) = project_camera_point(b, transform_point(b_from_a_camera,
+//! camera_triangle_centre(a, u, v, bit))), the same floats, as a row kernel over the tests. Every
+//! cell must hold triangles' room: u < width − 1 and v < height − 1 of a's mesh (all four of its
+//! depths are read, for either triangle).
 void project_triangle_centres(const MeshView& a, const MeshView& b, const Rigid3f& b_from_a_camera, TriangleTestBlock& block);
 
 //! The tests i of the block with owner_is_other(a, a_x, a_y, b, centre(i), depth_tolerance), in

@@ -63,7 +63,8 @@ void gather_window(const DepthMesh& mesh, int pixel, int radius, int spacing, fl
 // fit_surface's sums for `count` (≤ kChunk) gathered windows, added in the element function's
 // order (each row of the grid left to right, then the rows top to bottom) for each window; the
 // windows are the vector lanes. `sums`: 9 rows of kChunk (n, sx, sy, sxx, syy, sxy, sz, sxz, syz).
-ZF_ROW_KERNEL void plane_sums(const float* samples, int radius, int spacing, const float* centre, float same_surface, int count, float* sums) {
+ZF_ROW_KERNEL void plane_sums(const float* samples, int radius, int spacing, const float* centre, float same_surface, int count,
+                              float* sums) {
   const int side = 2 * radius + 1;
   float* n = sums;
   float* sx = sums + kChunk;
@@ -96,7 +97,8 @@ ZF_ROW_KERNEL void plane_sums(const float* samples, int radius, int spacing, con
 }
 
 // smoothed_depth's sum and count for `count` (≤ kChunk) gathered windows, in its order.
-ZF_ROW_KERNEL void mean_sums(const float* samples, int radius, const float* centre, float same_surface, int count, float* sum, float* number) {
+ZF_ROW_KERNEL void mean_sums(const float* samples, int radius, const float* centre, float same_surface, int count, float* sum,
+                             float* number) {
   const int side = 2 * radius + 1;
   for (int i = 0; i < count; ++i) sum[i] = number[i] = 0.0f;
   for (int k = 0; k < side * side; ++k) {

@@ -6,7 +6,8 @@
 //! of one view at once (fit_surfaces, smoothed_depths) that gathers each window's depths and
 //! runs the sums as row kernels over the windows, with the same floats: a seam reads three
 //! windows of 9–25 pixels for each of its points, and one window at a time that was 7 % of
-//! zippering's instructions (docs/profile.md).
+//! zippering's instructions (docs/profile.md). Windows wider than 5 × 5 (seam smoothing radius 3
+//! and up) go one at a time through the element functions.
 
 #include <span>
 

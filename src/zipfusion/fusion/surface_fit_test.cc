@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -60,8 +62,9 @@ TEST(SurfaceFit, RecoversATiltedPlaneAndLeavesOtherSurfacesOut) {
 bool same_bits(float a, float b) { return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b); }
 
 TEST(SurfaceFit, ManyWindowsAtOnceGiveTheElementFunctionsFloats) {
-  // Noisy depth in two layers with holes: every pixel with depth is a window's centre, the image's
-  // edges and corners included, more windows than one chunk.
+  // Noisy depth in two layers with holes, and a few pixels whose depth is not a depth (infinite,
+  // NaN, negative: they must add nothing, not poison a sum): every pixel with depth is a window's
+  // centre, the image's edges and corners included, more windows than one chunk.
   DepthMesh mesh = depth_only(kSmall.width, kSmall.height);
   std::mt19937 random(11);
   std::uniform_real_distribution<float> noise(-0.012f, 0.012f), unit(0.0f, 1.0f);
@@ -69,16 +72,22 @@ TEST(SurfaceFit, ManyWindowsAtOnceGiveTheElementFunctionsFloats) {
   for (int y = 0; y < kSmall.height; ++y) {
     for (int x = 0; x < kSmall.width; ++x) {
       const float layer = (x + 2 * y) % 11 < 4 ? 1.6f : 2.4f;
-      const float z = unit(random) < 0.15f ? 0.0f : layer + 0.01f * x + noise(random);
+      const float odd = unit(random);
+      const float not_depth = odd < 0.01f   ? std::numeric_limits<float>::infinity()
+                              : odd < 0.02f ? std::numeric_limits<float>::quiet_NaN()
+                                            : -1.0f;
+      const float z = unit(random) < 0.15f ? 0.0f : odd < 0.03f ? not_depth : layer + 0.01f * x + noise(random);
       mesh.depth[y * kSmall.width + x] = z;
-      if (z > 0) pixels.push_back(y * kSmall.width + x);
+      if (z > 0 && std::isfinite(z)) pixels.push_back(y * kSmall.width + x);
     }
   }
   ASSERT_GT(pixels.size(), 600u);
   const MeshView view = view_of(mesh, kSmall);
   std::vector<SurfaceFit> fits(pixels.size());
   std::vector<float> depths(pixels.size());
-  for (const auto& [radius, spacing] : {std::pair{1, 1}, {1, 2}, {2, 1}, {2, 2}, {3, 1}}) {
+  // Every window the seams use (normal planes: radius 1 spacing 2, radius 2 spacing 1 + r / 2 for
+  // smoothing r = 1–4; planes and means over radius r), and one wider than the row kernels take.
+  for (const auto& [radius, spacing] : {std::pair{1, 1}, {1, 2}, {2, 1}, {2, 2}, {2, 3}, {3, 1}}) {
     fit_surfaces(view, pixels, radius, spacing, fits.data());
     for (size_t k = 0; k < pixels.size(); ++k) {
       const SurfaceFit one = fit_surface(view, pixels[k], radius, spacing);

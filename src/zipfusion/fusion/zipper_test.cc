@@ -333,8 +333,8 @@ TEST(Redundancy, TestBlockKernelsGiveTheElementFunctionsFloatsAndAnswers) {
             const int m = select_owned_by_other(a, b, 0.06f, block, owned);
             std::vector<int> expected_owned;
             for (int i = 0; i < block.count; ++i) {
-              const ViewPoint one =
-                  project_camera_point(b, b_from_a_camera * camera_triangle_centre(a, block.u[i], block.v[i], bit_of(block.id[i])));
+              const Eigen::Vector3f centre = camera_triangle_centre(a, block.u[i], block.v[i], bit_of(block.id[i]));
+              const ViewPoint one = project_camera_point(b, transform_point(b_from_a_camera, centre));
               const ViewPoint many = block.centre(i);
               ASSERT_TRUE(same_bits(many.in_camera.x(), one.in_camera.x()) && same_bits(many.in_camera.y(), one.in_camera.y()) &&
                           same_bits(many.in_camera.z(), one.in_camera.z()) && same_bits(many.x, one.x) && same_bits(many.y, one.y) &&
