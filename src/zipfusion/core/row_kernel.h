@@ -2,11 +2,12 @@
 //! \file
 //! ZF_ROW_KERNEL: marks a row kernel, a plain loop over the pixels of a row, or over a block of
 //! points (FRBR's tests, the seams' windows), that the compiler vectorises; the loads of a block of
-//! points are gathers, which GCC makes only when the kernel's pointers are `__restrict`. On x86-64 it is compiled three times, for AVX-512 (16 floats a vector), AVX2 (8) and
-//! the baseline SSE2 (4), and the best the CPU has is chosen when the process loads, so one binary
-//! runs everywhere and uses what it finds. AVX-512 could fuse a multiply and an add where the
-//! others cannot; the libraries, where the row kernels are, are compiled with -ffp-contract=off,
-//! so each clone computes the same floats, and the same meshes come out on every CPU.
+//! points are gathers, which GCC makes only when the kernel's pointers are `__restrict`. On x86-64
+//! it is compiled three times, for AVX-512 (16 floats a vector), AVX2 (8) and the baseline SSE2
+//! (4), and the best the CPU has is chosen when the process loads, so one binary runs everywhere
+//! and uses what it finds. AVX-512 could fuse a multiply and an add where the others cannot; the
+//! libraries, where the row kernels are, are compiled with -ffp-contract=off, so each clone
+//! computes the same floats, and the same meshes come out on every CPU.
 
 #include <bit>
 #include <cstdint>

@@ -203,21 +203,6 @@ ZF_ROW_KERNEL void project_centres_row(const float* __restrict depth, int a_widt
   }
 }
 
-// The row form of ownership_score_at (a score map's cells with their zero border, `stride` a row).
-inline float score_lookup(const float* __restrict cells, int stride, float width_f, float height_f, float cells_per_pixel, float px,
-                          float py) {
-  const float cx = px * cells_per_pixel - 0.5f, cy = py * cells_per_pixel - 0.5f;
-  const unsigned inside = (cx > -1.0f) & (cy > -1.0f) & (cx < width_f) & (cy < height_f);
-  // Outside, a cell that exists is read and the answer thrown away.
-  const float sx = select_if(inside, cx, 0.0f), sy = select_if(inside, cy, 0.0f);
-  const int u = floor_to_int(sx), v = floor_to_int(sy);
-  const float fu = sx - static_cast<float>(u), fv = sy - static_cast<float>(v);
-  const int k = (v + 1) * stride + u + 1;  // cell (u, v); (u, v + 1) is a row further
-  const float top = cells[k] + fu * (cells[k + 1] - cells[k]);
-  const float bottom = cells[k + stride] + fu * (cells[k + stride + 1] - cells[k + stride]);
-  return select_if(inside, top + fv * (bottom - top), 0.0f);
-}
-
 // The row form of owner_is_other over a block's tests (b's score map and a's both exist): 1 where b
 // owns the centre.
 ZF_ROW_KERNEL void owned_by_other_row(const float* __restrict a_cells, int a_stride, float a_width_f, float a_height_f,
@@ -228,8 +213,8 @@ ZF_ROW_KERNEL void owned_by_other_row(const float* __restrict a_cells, int a_str
                                       const int* __restrict cell, int count, unsigned* __restrict owned) {
   for (int i = 0; i < count; ++i) {
     const unsigned valid = cell[i] >= 0;
-    const float mine = score_lookup(a_cells, a_stride, a_width_f, a_height_f, a_cells_per_pixel, a_x[i], a_y[i]);
-    const float theirs = score_lookup(b_cells, b_stride, b_width_f, b_height_f, b_cells_per_pixel, x[i], y[i]);
+    const float mine = score_at_cells(a_cells, a_stride, a_width_f, a_height_f, a_cells_per_pixel, a_x[i], a_y[i]);
+    const float theirs = score_at_cells(b_cells, b_stride, b_width_f, b_height_f, b_cells_per_pixel, x[i], y[i]);
     const unsigned theirs_wins = (theirs > mine) | ((theirs == mine) & b_wins_ties);
     // may_see_point: b has no depth, or depth near the centre's, at one of the 2×2 pixels.
     const int k = valid ? cell[i] : 0;
@@ -267,14 +252,11 @@ int select_owned_by_other(const MeshView& a, const MeshView& b, float depth_tole
     }
     return n;
   }
-  auto cells_per_pixel = [](const MeshView& view) {
-    return std::bit_cast<float>(static_cast<std::uint32_t>(127 + view.level - view.ownership->level) << 23);
-  };
   const OwnershipScore &qa = *a.ownership, &qb = *b.ownership;
   unsigned flags[TriangleTestBlock::kCapacity];
-  owned_by_other_row(qa.cells.data(), qa.stride, qa.width_f, qa.height_f, cells_per_pixel(a), qb.cells.data(), qb.stride, qb.width_f,
-                     qb.height_f, cells_per_pixel(b), b.camera < a.camera, b.mesh->depth.data(), b.mesh->width, depth_tolerance, block.a_x,
-                     block.a_y, block.x, block.y, block.b_z, block.cell, block.count, flags);
+  owned_by_other_row(qa.cells.data(), qa.stride, qa.width_f, qa.height_f, a.score_cells_per_pixel(), qb.cells.data(), qb.stride,
+                     qb.width_f, qb.height_f, b.score_cells_per_pixel(), b.camera < a.camera, b.mesh->depth.data(), b.mesh->width,
+                     depth_tolerance, block.a_x, block.a_y, block.x, block.y, block.b_z, block.cell, block.count, flags);
   for (int i = 0; i < block.count; ++i) {
     if (flags[i]) owned[n++] = i;
   }

@@ -132,20 +132,28 @@ inline float cell_triangle_area(float x0, float x1, float y0, float y1, std::uin
 }
 
 //! Element function: the score at (x, y) in pixels of a level whose pixels are 1/cells_per_pixel
-//! cells of the score's level (cells_per_pixel = 2^(level − q.level), a power of two, so the
+//! cells of the score's level (cells_per_pixel = 2^(level − score level), a power of two, so the
 //! result is exactly that of the full-resolution coordinates), bilinear between cell centres; 0
-//! outside the image.
-inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel) {
+//! outside the image. On a score map's cells as OwnershipScore keeps them (with their zero
+//! border, `stride` a row, `width_f` × `height_f` cells inside it), so that FRBR's row kernel
+//! calls it too. Branch-free: outside the image it reads the cells around cell (0, 0) and answers
+//! 0, so the map must have been filled (compute_border_distance, compute_smoothness).
+inline float score_at_cells(const float* cells, int stride, float width_f, float height_f, float cells_per_pixel, float x, float y) {
   const float cx = x * cells_per_pixel - 0.5f, cy = y * cells_per_pixel - 0.5f;
-  if (!(cx > -1.0f && cy > -1.0f && cx < q.width_f && cy < q.height_f)) return 0.0f;
-  // u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
-  const int u = floor_to_int(cx), v = floor_to_int(cy);
-  const float fu = cx - static_cast<float>(u), fv = cy - static_cast<float>(v);
-  const float* row0 = &q.cell(u, v);
-  const float* row1 = row0 + q.stride;  // cell (u, v + 1)
-  const float top = row0[0] + fu * (row0[1] - row0[0]);
-  const float bottom = row1[0] + fu * (row1[1] - row1[0]);
-  return top + fv * (bottom - top);
+  const unsigned inside = (cx > -1.0f) & (cy > -1.0f) & (cx < width_f) & (cy < height_f);
+  // Inside, u, v ≥ −1 and u + 1, v + 1 ≤ the size: all four cells are in the padded map.
+  const float sx = select_if(inside, cx, 0.0f), sy = select_if(inside, cy, 0.0f);
+  const int u = floor_to_int(sx), v = floor_to_int(sy);
+  const float fu = sx - static_cast<float>(u), fv = sy - static_cast<float>(v);
+  const int k = (v + 1) * stride + u + 1;  // cell (u, v); cell (u, v + 1) is a row further
+  const float top = cells[k] + fu * (cells[k + 1] - cells[k]);
+  const float bottom = cells[k + stride] + fu * (cells[k + stride + 1] - cells[k + stride]);
+  return select_if(inside, top + fv * (bottom - top), 0.0f);
+}
+
+//! The same on an OwnershipScore.
+inline float ownership_score_at(const OwnershipScore& q, float x, float y, float cells_per_pixel) {
+  return score_at_cells(q.cells.data(), q.stride, q.width_f, q.height_f, cells_per_pixel, x, y);
 }
 
 //! The same at full-resolution pixel coordinates.
@@ -172,12 +180,14 @@ struct MeshView {
   float last_x = mesh != nullptr ? static_cast<float>(mesh->width - 1) : 0.0f;
   float last_y = mesh != nullptr ? static_cast<float>(mesh->height - 1) : 0.0f;
 
+  //! The score map's cells per pixel of this level: 2^(level − ownership level), made from its
+  //! exponent bits (no division; levels are small). Only where `ownership` is set.
+  float score_cells_per_pixel() const { return std::bit_cast<float>(static_cast<std::uint32_t>(127 + level - ownership->level) << 23); }
+
   //! The ownership score at (x, y) in this level's pixel coordinates.
   float score_at(float x, float y) const {
     if (ownership == nullptr) return 0.0f;
-    // 2^(level − ownership level) made from its exponent bits: no division (levels are small).
-    const float cells_per_pixel = std::bit_cast<float>(static_cast<std::uint32_t>(127 + level - ownership->level) << 23);
-    return ownership_score_at(*ownership, x, y, cells_per_pixel);
+    return ownership_score_at(*ownership, x, y, score_cells_per_pixel());
   }
 };
 
