@@ -1,6 +1,7 @@
 #include "zipfusion/depth/color_lookup.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cstring>
 
 #include "zipfusion/core/row_kernel.h"
@@ -31,7 +32,74 @@ ZF_ROW_KERNEL void project_pinhole_row(const Eigen::Vector3f& row_ray, const Eig
   }
 }
 
+// The two pixels `pixel` and `pixel` + `right` (right 0 or 1) of an image of `size` ≥ 8 bytes, as
+// the low three bytes of two words: one eight-byte read, moved back from the image's end where
+// it would pass it.
+inline void pixel_pair(const std::uint8_t* bytes, int size, int pixel, int right, std::uint32_t& first, std::uint32_t& second) {
+  const int offset = std::min(3 * pixel, size - 8);
+  std::uint64_t word;
+  std::memcpy(&word, bytes + offset, sizeof word);
+  const int shift = 8 * (3 * pixel - offset);
+  first = static_cast<std::uint32_t>(word >> shift) & 0xFFFFFF;
+  second = right ? static_cast<std::uint32_t>(word >> (shift + 24)) & 0xFFFFFF : first;
+}
+
+// One channel (`shift` 0, 8, 16) of sample_bilinear's mix of four packed pixels.
+inline std::uint32_t mix_channel(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d, int wx, int wy, int shift) {
+  const int pa = static_cast<int>((a >> shift) & 0xFF), pb = static_cast<int>((b >> shift) & 0xFF);
+  const int pc = static_cast<int>((c >> shift) & 0xFF), pd = static_cast<int>((d >> shift) & 0xFF);
+  const int top = pa * 256 + wx * (pb - pa), bottom = pc * 256 + wx * (pd - pc);
+  return static_cast<std::uint32_t>(((top * 256 + wy * (bottom - top) + 32768) >> 16) & 0xFF) << shift;
+}
+
+// sample_bilinear's colours at (x[i], y[i]), i < count ≤ ColorLookup::kRowChunk, packed
+// (ColorLookup::pack_rgb): the same integer arithmetic in every lane, and its bounds test as a
+// select (lanes outside read pixel 0). In three loops: GCC vectorises the first and the last,
+// not the reads of three-byte pixels between them.
+ZF_ROW_KERNEL void sample_bilinear_row(const std::uint8_t* __restrict bytes, int width, int height, const float* __restrict x,
+                                       const float* __restrict y, int count, std::uint32_t* __restrict packed) {
+  constexpr int kChunk = ColorLookup::kRowChunk;
+  assert(count <= kChunk);
+  assert(3 * width * height >= 8);
+  const float last_x = static_cast<float>(width) - 1.0f, last_y = static_cast<float>(height) - 1.0f;
+  std::uint32_t keep[kChunk];
+  int top_left[kChunk], right[kChunk], down[kChunk], wx[kChunk], wy[kChunk];
+  for (int i = 0; i < count; ++i) {
+    const unsigned inside = (x[i] >= 0.0f) & (y[i] >= 0.0f) & (x[i] <= last_x) & (y[i] <= last_y);
+    const float sx = select_if(inside, x[i], 0.0f), sy = select_if(inside, y[i], 0.0f);
+    const int x0 = static_cast<int>(sx), y0 = static_cast<int>(sy);
+    keep[i] = 0u - inside;
+    top_left[i] = y0 * width + x0;
+    right[i] = std::min(x0 + 1, width - 1) - x0;  // 0 or 1
+    down[i] = (std::min(y0 + 1, height - 1) - y0) * width;
+    wx[i] = static_cast<int>((sx - static_cast<float>(x0)) * 256.0f + 0.5f);
+    wy[i] = static_cast<int>((sy - static_cast<float>(y0)) * 256.0f + 0.5f);
+  }
+  std::uint32_t a[kChunk], b[kChunk], c[kChunk], d[kChunk];
+  const int size = 3 * width * height;
+  for (int i = 0; i < count; ++i) {
+    pixel_pair(bytes, size, top_left[i], right[i], a[i], b[i]);
+    pixel_pair(bytes, size, top_left[i] + down[i], right[i], c[i], d[i]);
+  }
+  const std::uint32_t no_color = ColorLookup::pack_rgb(kNoColor);
+  for (int i = 0; i < count; ++i) {
+    const std::uint32_t color = mix_channel(a[i], b[i], c[i], d[i], wx[i], wy[i], 0) | mix_channel(a[i], b[i], c[i], d[i], wx[i], wy[i], 8) |
+                                mix_channel(a[i], b[i], c[i], d[i], wx[i], wy[i], 16);
+    packed[i] = (color & keep[i]) | (no_color & ~keep[i]);
+  }
+}
+
 }  // namespace
+
+void ColorLookup::sample_row(const float* x, const float* y, int count, std::uint32_t* packed) const {
+  static_assert(sizeof(Rgb8) == 3, "pixels are three bytes");
+  assert(count <= kRowChunk);
+  if (3 * image_->size() < 8) {  // fewer bytes than one read of the row kernel
+    for (int i = 0; i < count; ++i) packed[i] = pack_rgb(sample(x[i], y[i]));
+    return;
+  }
+  sample_bilinear_row(reinterpret_cast<const std::uint8_t*>(image_->data.data()), image_->width, image_->height, x, y, count, packed);
+}
 
 void ColorLookup::project_row(int v, int u0, int count, const float* z, float* x, float* y) const {
   if (color_k_->has_distortion) {

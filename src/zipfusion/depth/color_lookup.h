@@ -5,6 +5,7 @@
 //! sampled bilinearly. Points outside the colour image, and cameras without colour, get grey.
 
 #include <algorithm>
+#include <cstdint>
 #include <vector>
 
 #include "zipfusion/core/image.h"
@@ -64,9 +65,16 @@ class ColorLookup {
   //! z[0..count), the same floats at() computes (−1 where the point is behind the colour
   //! camera); sample(x[i], y[i]) is then the colour at() gives for a depth > 0. Only where
   //! has_image(). The zipper's colours of samba-4cam took 29 ns a vertex through at(), 21 ns so
-  //! (docs/profile.md).
+  //! (docs/profile.md); sample_row samples a chunk at once.
   void project_row(int v, int u0, int count, const float* z, float* x, float* y) const;
   Rgb8 sample(float x, float y) const { return sample_bilinear(*image_, x, y); }
+  //! sample() at (x[i], y[i]) for i < count (≤ kRowChunk), the colours packed by pack_rgb: a
+  //! row kernel, the same colours.
+  void sample_row(const float* x, const float* y, int count, std::uint32_t* packed) const;
+  static std::uint32_t pack_rgb(Rgb8 c) { return c.r | static_cast<std::uint32_t>(c.g) << 8 | static_cast<std::uint32_t>(c.b) << 16; }
+  static Rgb8 unpack_rgb(std::uint32_t packed) {
+    return {static_cast<unsigned char>(packed), static_cast<unsigned char>(packed >> 8), static_cast<unsigned char>(packed >> 16)};
+  }
 
   //! The two steps over pixels u0 ≤ u < u1 of row v, `depth_row` the row's depths: calls
   //! emit(u, colour) for each u with keep(u) (whose depth must be > 0), in order. Only where
@@ -74,12 +82,21 @@ class ColorLookup {
   template <typename Keep, typename Emit>
   void for_each_color_in_row(int v, int u0, int u1, const float* depth_row, Keep&& keep, Emit&& emit) const {
     float x[kRowChunk], y[kRowChunk];
+    int kept[kRowChunk];
+    std::uint32_t packed[kRowChunk];
     for (int first = u0; first < u1; first += kRowChunk) {
       const int count = std::min(kRowChunk, u1 - first);
       project_row(v, first, count, depth_row + first, x, y);
+      // The kept pixels' coordinates moved to the front (branch-free), then sampled together.
+      int n = 0;
       for (int i = 0; i < count; ++i) {
-        if (keep(first + i)) emit(first + i, sample(x[i], y[i]));
+        kept[n] = i;
+        x[n] = x[i];
+        y[n] = y[i];
+        n += keep(first + i) ? 1 : 0;
       }
+      sample_row(x, y, n, packed);
+      for (int k = 0; k < n; ++k) emit(first + kept[k], unpack_rgb(packed[k]));
     }
   }
 

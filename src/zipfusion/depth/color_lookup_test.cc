@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <utility>
 #include <vector>
 
 namespace zipfusion {
@@ -25,6 +29,53 @@ TEST(ColorLookup, BilinearSamplingIsExactOnAGradient) {
   EXPECT_EQ(c.b, 77);
   EXPECT_EQ(sample_bilinear(image, -0.5f, 3), kNoColor);
   EXPECT_EQ(sample_bilinear(image, 99.0f, 79.0f), (Rgb8{198, 237, 77}));
+}
+
+// The row kernel behind sample_row gives sample_bilinear's colours bit for bit: on noise (every
+// weight shows), at the image's edges and corners (the last pixels' reads are moved back from the
+// end), outside it, at NaN and infinity, and on images too small for its eight-byte reads.
+TEST(ColorLookup, SampleRowGivesTheElementFunctionsColours) {
+  CameraModel camera;
+  camera.depth_intrinsics = {.width = 4, .height = 4, .fx = 4, .fy = 4, .cx = 2, .cy = 2};
+  camera.color_intrinsics = Intrinsics{.width = 4, .height = 4, .fx = 4, .fy = 4, .cx = 2, .cy = 2};
+  std::uint32_t state = 12345;
+  auto next = [&] { return state = state * 1664525u + 1013904223u; };
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  for (const auto& [width, height] : {std::pair{1, 1}, {2, 1}, {1, 3}, {3, 1}, {2, 2}, {37, 5}, {640, 480}}) {
+    ColorImage image(width, height);
+    for (Rgb8& c : image.data) c = {static_cast<unsigned char>(next() >> 24), static_cast<unsigned char>(next() >> 24), static_cast<unsigned char>(next() >> 24)};
+    const ColorLookup lookup(camera, &image);
+    std::vector<float> x, y;
+    const float w = static_cast<float>(width - 1), h = static_cast<float>(height - 1);
+    for (const float ex : {0.0f, w, std::nextafter(w, 0.0f), std::nextafter(w, 1e9f), -0.0f, -1e-7f}) {
+      for (const float ey : {0.0f, h, std::nextafter(h, 0.0f), std::nextafter(h, 1e9f)}) {
+        x.push_back(ex);
+        y.push_back(ey);
+      }
+    }
+    for (const float bad : {nan, inf, -inf, -1.0f}) {
+      x.insert(x.end(), {bad, 0.5f * w, bad});
+      y.insert(y.end(), {0.5f * h, bad, bad});
+    }
+    // Alternately inside the image and anywhere up to a pixel around it.
+    while (x.size() < 3 * ColorLookup::kRowChunk) {
+      const float margin = x.size() % 2 == 0 ? 0.0f : 1.0f;
+      x.push_back(static_cast<float>(next() % 100000) * (w + 2 * margin) / 100000.0f - margin);
+      y.push_back(static_cast<float>(next() % 100000) * (h + 2 * margin) / 100000.0f - margin);
+    }
+    int inside = 0;
+    for (size_t first = 0; first < x.size(); first += ColorLookup::kRowChunk) {
+      const int count = static_cast<int>(std::min<size_t>(ColorLookup::kRowChunk, x.size() - first));
+      std::uint32_t packed[ColorLookup::kRowChunk];
+      lookup.sample_row(x.data() + first, y.data() + first, count, packed);
+      for (int i = 0; i < count; ++i) {
+        const Rgb8 expected = sample_bilinear(image, x[first + i], y[first + i]);
+        EXPECT_EQ(ColorLookup::unpack_rgb(packed[i]), expected) << width << "×" << height << " at " << x[first + i] << ", " << y[first + i];
+        inside += !(expected == kNoColor);
+      }
+    }
+    EXPECT_GT(inside, ColorLookup::kRowChunk) << width << "×" << height;
+  }
 }
 
 TEST(ColorLookup, ProjectsThroughColorFromDepth) {
