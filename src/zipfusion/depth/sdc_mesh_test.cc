@@ -9,6 +9,7 @@
 #include <set>
 #include <string>
 #include <tuple>
+#include <utility>
 
 namespace zipfusion {
 namespace {
@@ -138,6 +139,31 @@ TEST(Sdc, NonzeroBytesAreVisitedOnceEachInOrder) {
       }
       for_each_nonzero_byte(bytes.data(), count, [&](int i, std::uint8_t b) { visited.emplace_back(i, b); });
       EXPECT_EQ(visited, expected) << count << " bytes, density " << density;
+    }
+  }
+}
+
+TEST(Sdc, GridTrianglesAtAPixelAreEveryTriangleWithThatCornerInCellOrder) {
+  // Against every triangle of the grid, in cell order: each pixel of grids down to one cell and
+  // one row or column of pixels (no cells), borders and corners included.
+  for (const auto& [width, height] : {std::pair{1, 1}, {2, 1}, {1, 3}, {2, 2}, {3, 2}, {5, 4}}) {
+    for (int pixel = 0; pixel < width * height; ++pixel) {
+      std::vector<std::tuple<int, int, int, int, int, int>> expected, found;  // cell, bit, corners, k
+      for (int cell_v = 0; cell_v + 1 < height; ++cell_v) {
+        for (int cell_u = 0; cell_u + 1 < width; ++cell_u) {
+          for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+            int corners[3];
+            triangle_pixels(cell_v * width + cell_u, width, bit, corners);
+            for (int k = 0; k < 3; ++k) {
+              if (corners[k] == pixel) expected.emplace_back(cell_v * width + cell_u, bit, corners[0], corners[1], corners[2], k);
+            }
+          }
+        }
+      }
+      for_each_grid_triangle_at_pixel(pixel, width, height, [&](int cell, TriangleBit bit, const int* corners, int k) {
+        found.emplace_back(cell, bit, corners[0], corners[1], corners[2], k);
+      });
+      EXPECT_EQ(found, expected) << width << "×" << height << ", pixel " << pixel;
     }
   }
 }

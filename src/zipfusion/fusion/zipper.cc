@@ -521,11 +521,18 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                                    [&](int u) { return used[u] != 0; }, [&](int, Rgb8 color) { *out++ = color; });
     }
   };
-  parallel_for(0, static_cast<int>(active.size()) + 1, [&](int item) {
-    if (item == 0) {
-      add_seam_triangles();
-    } else {
-      color_camera(item - 1);
+  // The threads take the items in turn: parallel_for's contiguous blocks gave the seam
+  // triangles' thread a camera's colours too (two threads: items 0–1 against 2–4), and it
+  // finished last while the other waited.
+  const int item_count = static_cast<int>(active.size()) + 1;
+  std::atomic<int> next_item{0};
+  parallel_for(0, std::min(item_count, task_threads), [&](int) {
+    for (int item; (item = next_item.fetch_add(1)) < item_count;) {
+      if (item == 0) {
+        add_seam_triangles();
+      } else {
+        color_camera(item - 1);
+      }
     }
   }, options.num_threads);
   // Assembly until its seam triangles are in; colour for what of it came after.
