@@ -4,6 +4,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
@@ -565,6 +566,48 @@ void compute_smoothness(const DepthMesh& mesh, const Intrinsics& k, int level, c
   }
 }
 
+namespace {
+
+// Bit i (i < kLanes) set where column i of `rows` rows of a mesh holds a triangle whose mean depth
+// lies within √distance2 of z: the columns of a search's window where a triangle may be near.
+// `bits` and `depth` start at the first row's first cell and pixel, rows `width` apart; each row
+// reads kLanes bits, and kLanes + 1 depths of it and of the row below. The mean depths are
+// has_triangle_near's, the same floats, and so is the test on them.
+template <int kLanes>
+inline std::uint32_t near_depth_columns(const std::uint8_t* __restrict bits, const float* __restrict depth, int width, int rows, float z,
+                                        float distance2) {
+  const float third = 1.0f / 3.0f, none = std::numeric_limits<float>::infinity();
+  std::uint32_t near[kLanes] = {};
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* __restrict row_bits = bits + static_cast<size_t>(r) * width;
+    const float* __restrict z0 = depth + static_cast<size_t>(r) * width;
+    const float* __restrict z1 = z0 + width;
+    // Widened first: GCC vectorises the loop below only over lanes of one width.
+    std::uint32_t cell_bits[kLanes];
+    for (int i = 0; i < kLanes; ++i) cell_bits[i] = row_bits[i];
+    for (int i = 0; i < kLanes; ++i) {
+      const float upper = select_if(cell_bits[i] & kUpperTriangle, (z0[i] + z1[i] + z0[i + 1]) * third - z, none);
+      const float lower = select_if((cell_bits[i] & kLowerTriangle) >> 1, (z0[i + 1] + z1[i] + z1[i + 1]) * third - z, none);
+      near[i] |= static_cast<std::uint32_t>(upper * upper < distance2) | static_cast<std::uint32_t>(lower * lower < distance2);
+    }
+  }
+  std::uint32_t columns = 0;
+  for (int i = 0; i < kLanes; ++i) columns |= near[i] << i;
+  return columns;
+}
+
+// The same over 8 columns (windows up to 3 cells each way) and 16 (up to 7).
+ZF_ROW_KERNEL std::uint32_t near_depth_columns8(const std::uint8_t* __restrict bits, const float* __restrict depth, int width, int rows, float z,
+                                                float distance2) {
+  return near_depth_columns<8>(bits, depth, width, rows, z, distance2);
+}
+ZF_ROW_KERNEL std::uint32_t near_depth_columns16(const std::uint8_t* __restrict bits, const float* __restrict depth, int width, int rows,
+                                                 float z, float distance2) {
+  return near_depth_columns<16>(bits, depth, width, rows, z, distance2);
+}
+
+}  // namespace
+
 bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance, int max_window) {
   const Eigen::Vector3f& q = p.in_camera;
   if (!(q.z() > 0) || !(std::abs(p.x) < 1e6f && std::abs(p.y) < 1e6f)) return false;
@@ -602,13 +645,40 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
            ((bits & kLowerTriangle) && centre_near(u, v, (z10 + z01 + z11) * third, (z10 + z11) * third, (z01 + z11) * third));
   };
   if (cell_has_near(cu, cv)) return true;
+  // Where the scan goes on past the rings most searches end in (p's cell for narrow windows, the
+  // first ring for wide ones), the columns of the window that hold a triangle whose mean depth is
+  // near p's are found first, a row at a time as vectors, and only their cells are scanned: most
+  // of the searches that get this far find nothing (on samba-4cam two in three of the seams' and
+  // nine in ten of FRBR's), and most of those find no such column. Searches wholly inside the
+  // image, far enough from its right edge for the rows' reads.
+  const int span = 2 * window + 1, lanes = span <= 8 ? 8 : 16;
+  static_assert(2 * 4 + 1 <= 16, "the widest window is one read a row");
+  const int filter_ring = window <= 2 ? 1 : 2;
+  std::uint32_t columns = ~0u;  // bit k: column cu − window + k may hold a near triangle
+  // A window wholly off the image holds no cell (one that reaches into it from outside is
+  // scanned: a ring off the image does not mean the next one is).
+  if (cu + window < 0 || cu - window > last_u || cv + window < 0 || cv - window > last_v) return false;
   for (int ring = 1; ring <= window; ++ring) {
-    if (cu + ring < 0 || cu - ring > last_u || cv + ring < 0 || cv - ring > last_v) return false;
-    for (int d = -ring; d <= ring; ++d) {
-      if (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring)) return true;
+    if (ring == filter_ring && inside && cu - window + lanes + 1 <= width) {
+      const int first = (cv - window) * width + cu - window;
+      columns = (lanes == 8 ? near_depth_columns8(triangles + first, depth + first, width, span, q.z(), distance2)
+                            : near_depth_columns16(triangles + first, depth + first, width, span, q.z(), distance2)) &
+                ((1u << span) - 1);
+      if (columns == 0) return false;
     }
-    for (int d = -ring + 1; d <= ring - 1; ++d) {
-      if (cell_has_near(cu - ring, cv + d) || cell_has_near(cu + ring, cv + d)) return true;
+    auto column_may_be_near = [&](int u) { return ((columns >> (u - cu + window)) & 1) != 0; };
+    for (int d = -ring; d <= ring; ++d) {
+      if (column_may_be_near(cu + d) && (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring))) return true;
+    }
+    if (column_may_be_near(cu - ring)) {
+      for (int d = -ring + 1; d <= ring - 1; ++d) {
+        if (cell_has_near(cu - ring, cv + d)) return true;
+      }
+    }
+    if (column_may_be_near(cu + ring)) {
+      for (int d = -ring + 1; d <= ring - 1; ++d) {
+        if (cell_has_near(cu + ring, cv + d)) return true;
+      }
     }
   }
   return false;

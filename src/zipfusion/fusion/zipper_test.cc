@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <bit>
 #include <cmath>
 #include <map>
@@ -354,6 +355,89 @@ TEST(Redundancy, TestBlockKernelsGiveTheElementFunctionsFloatsAndAnswers) {
   }
   EXPECT_GT(outside, tested / 4);      // off the image or behind it
   EXPECT_GT(owned_total, tested / 20);  // and owned by b, for some
+}
+
+// has_triangle_near answers as a scan of every cell of its window does, with the same
+// arithmetic: on a noisy surface with a step, holes and triangles cleared (their depths left, as
+// redundancy removal leaves them), for windows of 1 to 4 cells, at points near and off both
+// layers, wholly inside the image (where the window's columns are filtered by depth first, 8 or
+// 16 at a time), near its edges and outside it, and right in front of and behind triangles at
+// about the distance.
+TEST(Redundancy, WindowSearchFindsWhatAScanOfTheWholeWindowFinds) {
+  const Intrinsics k{.width = 96, .height = 40, .fx = 58, .fy = 58, .cx = 47.5, .cy = 19.5};
+  std::mt19937 random(11);
+  std::normal_distribution<float> noise(0.0f, 0.004f);
+  Image<float> depth(k.width, k.height, 0.0f);
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const bool step = u > 60 && v > 10 && v < 30;
+      const bool hole = (u - 30) * (u - 30) + (v - 20) * (v - 20) < 16;
+      depth(u, v) = hole ? 0.0f : (step ? 2.3f : 2.5f) + 0.002f * static_cast<float>(u % 7) + noise(random);
+    }
+  }
+  DepthMesh mesh;
+  triangulate_sdc(depth, k, Rigid3f::Identity(), {}, mesh);
+  for (size_t cell = 0; cell < mesh.triangles.size(); ++cell) {
+    if (random() % 5 == 0) mesh.triangles[cell] &= static_cast<std::uint8_t>(random() % 3);  // some cleared, depth kept
+  }
+  const MeshView view{&mesh, k, Rigid3f::Identity(), nullptr, 0, 0};
+  // The scan: every cell within the window of p's cell, the centres as has_triangle_near forms them.
+  auto scan = [&](const ViewPoint& p, float distance, int max_window) {
+    const Eigen::Vector3f& q = p.in_camera;
+    if (!(q.z() > 0) || !(std::abs(p.x) < 1e6f && std::abs(p.y) < 1e6f)) return false;
+    const int window = std::clamp(ceil_to_int(distance * view.fx / q.z()), 1, max_window);
+    const int cu = floor_to_int(p.x), cv = floor_to_int(p.y);
+    const float third = 1.0f / 3.0f;
+    for (int v = std::max(0, cv - window); v <= std::min(k.height - 2, cv + window); ++v) {
+      for (int u = std::max(0, cu - window); u <= std::min(k.width - 2, cu + window); ++u) {
+        const int cell = v * k.width + u;
+        const float z00 = mesh.depth[cell], z10 = mesh.depth[cell + 1], z01 = mesh.depth[cell + k.width], z11 = mesh.depth[cell + k.width + 1];
+        for (const TriangleBit bit : {kUpperTriangle, kLowerTriangle}) {
+          if (!(mesh.triangles[cell] & bit)) continue;
+          const bool upper = bit == kUpperTriangle;
+          const float zc = upper ? (z00 + z01 + z10) * third : (z10 + z01 + z11) * third;
+          const float x_extra = upper ? z10 * third : (z10 + z11) * third, y_extra = upper ? z01 * third : (z01 + z11) * third;
+          const float dz = zc - q.z();
+          const float dx = ((static_cast<float>(u) - view.cx) * zc + x_extra) * view.inv_fx - q.x();
+          const float dy = ((static_cast<float>(v) - view.cy) * zc + y_extra) * view.inv_fy - q.y();
+          if (dx * dx + dy * dy + dz * dz < distance * distance) return true;
+        }
+      }
+    }
+    return false;
+  };
+  // Most points within a few centimetres of one of the two layers, the others anywhere between.
+  std::uniform_real_distribution<float> x(-6.0f, k.width + 6.0f), y(-6.0f, k.height + 6.0f), z(2.22f, 2.58f), off(-0.03f, 0.03f);
+  auto point_depth = [&] { return random() % 4 == 0 ? z(random) : (random() % 2 ? 2.3f : 2.51f) + off(random); };
+  std::map<std::pair<int, bool>, int> cases;  // (window, found) → count
+  for (int i = 0; i < 60000; ++i) {
+    const float distance = std::array{0.01f, 0.05f, 0.09f, 0.2f}[i % 4];
+    const int max_window = i % 8 < 4 ? 4 : kSeamWindow;
+    Eigen::Vector3f point = unproject(k, x(random), y(random), point_depth());
+    if (i % 5 == 0) {
+      // Right in front of or behind a triangle's centre, by just under or over the distance: the
+      // depth test's edge.
+      const int cell = static_cast<int>(random() % (mesh.triangles.size() - k.width - 1));
+      const int u = cell % k.width, v = cell / k.width;
+      if (u < k.width - 1 && v < k.height - 1 && (mesh.triangles[cell] & kUpperTriangle)) {
+        const float third = 1.0f / 3.0f;
+        const float z00 = mesh.depth[cell], z10 = mesh.depth[cell + 1], z01 = mesh.depth[cell + k.width];
+        const float zc = (z00 + z01 + z10) * third;
+        const float edge = distance * (1.0f + 0.02f * (static_cast<float>(random() % 201) / 100.0f - 1.0f));
+        point = {((static_cast<float>(u) - view.cx) * zc + z10 * third) * view.inv_fx, ((static_cast<float>(v) - view.cy) * zc + z01 * third) * view.inv_fy,
+                 zc + (random() % 2 ? edge : -edge)};
+      }
+    }
+    const ViewPoint p = project_camera_point(view, point);
+    const bool expected = scan(p, distance, max_window);
+    ASSERT_EQ(has_triangle_near(view, p, distance, max_window), expected)
+        << "at (" << p.x << ", " << p.y << ", " << p.in_camera.z() << "), distance " << distance << ", window at most " << max_window;
+    ++cases[{std::clamp(ceil_to_int(distance * view.fx / p.in_camera.z()), 1, max_window), expected}];
+  }
+  for (int window = 1; window <= 4; ++window) {
+    EXPECT_GT((cases[{window, true}]), 100) << window;
+    EXPECT_GT((cases[{window, false}]), 100) << window;
+  }
 }
 
 TEST(Redundancy, OverlapReachesDecidesAsTheFullShareWould) {
