@@ -645,28 +645,30 @@ bool has_triangle_near(const MeshView& view, const ViewPoint& p, float distance,
            ((bits & kLowerTriangle) && centre_near(u, v, (z10 + z01 + z11) * third, (z10 + z11) * third, (z01 + z11) * third));
   };
   if (cell_has_near(cu, cv)) return true;
+  // A window wholly off the image holds no cell (one that reaches into it from outside is
+  // scanned: a ring off the image does not mean the next one is).
+  if (cu + window < 0 || cu - window > last_u || cv + window < 0 || cv - window > last_v) return false;
   // Where the scan goes on past the rings most searches end in (p's cell for narrow windows, the
   // first ring for wide ones), the columns of the window that hold a triangle whose mean depth is
   // near p's are found first, a row at a time as vectors, and only their cells are scanned: most
   // of the searches that get this far find nothing (on samba-4cam two in three of the seams' and
   // nine in ten of FRBR's), and most of those find no such column. Searches wholly inside the
-  // image, far enough from its right edge for the rows' reads.
+  // image, far enough from its right edge for the rows' reads, and no wider than one read (16
+  // columns; windows are at most 4 cells each way by default).
   const int span = 2 * window + 1, lanes = span <= 8 ? 8 : 16;
-  static_assert(2 * 4 + 1 <= 16, "the widest window is one read a row");
   const int filter_ring = window <= 2 ? 1 : 2;
-  std::uint32_t columns = ~0u;  // bit k: column cu − window + k may hold a near triangle
-  // A window wholly off the image holds no cell (one that reaches into it from outside is
-  // scanned: a ring off the image does not mean the next one is).
-  if (cu + window < 0 || cu - window > last_u || cv + window < 0 || cv - window > last_v) return false;
+  bool columns_known = false;
+  std::uint32_t columns = 0;  // where known, bit k: column cu − window + k may hold a near triangle
   for (int ring = 1; ring <= window; ++ring) {
-    if (ring == filter_ring && inside && cu - window + lanes + 1 <= width) {
+    if (ring == filter_ring && inside && span <= lanes && cu - window + lanes + 1 <= width) {
       const int first = (cv - window) * width + cu - window;
       columns = (lanes == 8 ? near_depth_columns8(triangles + first, depth + first, width, span, q.z(), distance2)
                             : near_depth_columns16(triangles + first, depth + first, width, span, q.z(), distance2)) &
                 ((1u << span) - 1);
       if (columns == 0) return false;
+      columns_known = true;
     }
-    auto column_may_be_near = [&](int u) { return ((columns >> (u - cu + window)) & 1) != 0; };
+    auto column_may_be_near = [&](int u) { return !columns_known || ((columns >> (u - cu + window)) & 1) != 0; };
     for (int d = -ring; d <= ring; ++d) {
       if (column_may_be_near(cu + d) && (cell_has_near(cu + d, cv - ring) || cell_has_near(cu + d, cv + ring))) return true;
     }

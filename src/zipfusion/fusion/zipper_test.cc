@@ -361,8 +361,8 @@ TEST(Redundancy, TestBlockKernelsGiveTheElementFunctionsFloatsAndAnswers) {
 // arithmetic: on a noisy surface with a step, holes and triangles cleared (their depths left, as
 // redundancy removal leaves them), for windows of 1 to 4 cells, at points near and off both
 // layers, wholly inside the image (where the window's columns are filtered by depth first, 8 or
-// 16 at a time), near its edges and outside it, and right in front of and behind triangles at
-// about the distance.
+// 16 at a time), near its edges and outside it, right in front of and behind triangles at about
+// the distance, and for windows wider than the filter reads.
 TEST(Redundancy, WindowSearchFindsWhatAScanOfTheWholeWindowFinds) {
   const Intrinsics k{.width = 96, .height = 40, .fx = 58, .fy = 58, .cx = 47.5, .cy = 19.5};
   std::mt19937 random(11);
@@ -437,6 +437,28 @@ TEST(Redundancy, WindowSearchFindsWhatAScanOfTheWholeWindowFinds) {
   for (int window = 1; window <= 4; ++window) {
     EXPECT_GT((cases[{window, true}]), 100) << window;
     EXPECT_GT((cases[{window, false}]), 100) << window;
+  }
+  // Windows wider than one read of the column filter (up to 9 cells each way: 19 columns).
+  int wide = 0;
+  for (int i = 0; i < 5000; ++i) {
+    const float distance = i % 2 ? 0.4f : 0.6f;
+    const ViewPoint p = project_camera_point(view, unproject(k, x(random), y(random), point_depth()));
+    const bool expected = scan(p, distance, 9);
+    ASSERT_EQ(has_triangle_near(view, p, distance, 9), expected) << "at (" << p.x << ", " << p.y << ", " << p.in_camera.z() << "), distance " << distance;
+    wide += std::clamp(ceil_to_int(distance * view.fx / p.in_camera.z()), 1, 9) > 7;
+  }
+  EXPECT_GT(wide, 2500);
+  // A wide window whose only triangles lie in its last columns: a mesh that starts 8 cells right
+  // of the point's cell.
+  DepthMesh right_half;
+  triangulate_sdc(Image<float>(k.width, k.height, 2.5f), k, Rigid3f::Identity(), {}, right_half);
+  for (size_t cell = 0; cell < right_half.triangles.size(); ++cell) {
+    if (static_cast<int>(cell) % k.width < 50) right_half.triangles[cell] = 0;
+  }
+  const MeshView right_view{&right_half, k, Rigid3f::Identity(), nullptr, 0, 0};
+  for (const float u : {41.5f, 42.5f}) {
+    const ViewPoint p = project_camera_point(right_view, unproject(k, u, 20.5f, 2.5f));
+    EXPECT_TRUE(has_triangle_near(right_view, p, 0.45f, 9)) << "a point at column " << u;
   }
 }
 
