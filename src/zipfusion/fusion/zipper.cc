@@ -67,6 +67,17 @@ ZF_ROW_KERNEL int count_used_row(const std::uint8_t* used, int count) {
   return n;
 }
 
+// Calls task(k) for every k in [0, count), in order, each taken by whichever of up to
+// num_threads threads (0 = all) is free: for a few tasks of unequal length, where parallel_for's
+// contiguous blocks would leave a thread idle while another still has several.
+void run_tasks_in_turn(int count, int num_threads, IndexFunctionRef task) {
+  const int threads = std::max(1, std::min(count, num_threads > 0 ? num_threads : hardware_threads()));
+  std::atomic<int> next{0};
+  parallel_for(0, threads, [&](int) {
+    for (int k; (k = next.fetch_add(1)) < count;) task(k);
+  }, threads);
+}
+
 }  // namespace
 
 void ZipperOptions::validate() const {
@@ -387,18 +398,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
   std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
   const int seam_count = static_cast<int>(taken.size());
-  const int task_count = seam_count + static_cast<int>(active.size());
-  const int task_threads = std::max(1, std::min(task_count, options.num_threads > 0 ? options.num_threads : hardware_threads()));
-  std::atomic<int> next_task{0};
-  parallel_for(0, task_threads, [&](int) {
-    for (int k; (k = next_task.fetch_add(1)) < task_count;) {
-      if (k < seam_count) {
-        stitch(by_size[k]);
-      } else {
-        write_camera(active[k - seam_count]);
-      }
+  run_tasks_in_turn(seam_count + static_cast<int>(active.size()), options.num_threads, [&](int k) {
+    if (k < seam_count) {
+      stitch(by_size[k]);
+    } else {
+      write_camera(active[k - seam_count]);
     }
-  }, task_threads);
+  });
   std::vector<Seam> seams(taken.size());
   clear_seam_marks();
   clear_seam_marks_on_error.dismiss();
@@ -521,20 +527,16 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                                    [&](int u) { return used[u] != 0; }, [&](int, Rgb8 color) { *out++ = color; });
     }
   };
-  // The threads take the items in turn: parallel_for's contiguous blocks gave the seam
-  // triangles' thread a camera's colours too (two threads: items 0–1 against 2–4), and it
-  // finished last while the other waited.
-  const int item_count = static_cast<int>(active.size()) + 1;
-  std::atomic<int> next_item{0};
-  parallel_for(0, std::min(item_count, task_threads), [&](int) {
-    for (int item; (item = next_item.fetch_add(1)) < item_count;) {
-      if (item == 0) {
-        add_seam_triangles();
-      } else {
-        color_camera(item - 1);
-      }
+  // Taken in turn: as parallel_for's contiguous blocks, the seam triangles' thread also had a
+  // camera's colours (two threads: items 0–1 against 2–4), and it finished last while the other
+  // waited.
+  run_tasks_in_turn(static_cast<int>(active.size()) + 1, options.num_threads, [&](int item) {
+    if (item == 0) {
+      add_seam_triangles();
+    } else {
+      color_camera(item - 1);
     }
-  }, options.num_threads);
+  });
   // Assembly until its seam triangles are in; colour for what of it came after.
   result.stats.assemble_ms = std::chrono::duration<double, std::milli>(assembled - t).count();
   result.stats.color_ms = ms_since(assembled);
