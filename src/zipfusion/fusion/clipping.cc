@@ -1,6 +1,7 @@
 #include "zipfusion/fusion/clipping.h"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
@@ -33,6 +34,11 @@ using TriangulationData = CGAL::Triangulation_data_structure_2<VertexBase, FaceB
 // Constraints from two meshes may cross where their borders overlap; Exact_predicates_tag lets
 // CGAL split them at an approximate intersection instead of failing.
 using Delaunay = CGAL::Constrained_Delaunay_triangulation_2<Kernel, TriangulationData, CGAL::Exact_predicates_tag>;
+// The points go into a plain Delaunay triangulation of the same data structure, which then becomes
+// the constrained one (a Delaunay triangulation without constraints is one): the constrained
+// triangulation's flips also restore the constraint flags of the four faces around, and test for
+// them and for infinite faces, to the same result while there are none.
+using PlainDelaunay = CGAL::Delaunay_triangulation_2<Kernel, TriangulationData>;
 
 // The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
 // meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
@@ -1126,12 +1132,12 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // clipping 3 % fewer instructions, about 0.4 ms of 16 on one thread, and every 4th, 16th or
   // 32nd did less; 16 then 4 another 1.4 %, better than 8 then 2, 32 then 8, 64, 16 then 4).
   constexpr size_t kSkeletonStrides[] = {16, 4};
-  Delaunay triangulation;
+  PlainDelaunay points_only;
   std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
   Delaunay::Face_handle hint;
   auto insert_point = [&](const std::pair<Kernel::Point_2, SeamInfo>& point) {
     if (handle[point.second.index] != Delaunay::Vertex_handle()) return;  // in the skeleton
-    const Delaunay::Vertex_handle v = triangulation.insert(point.first, hint);
+    const Delaunay::Vertex_handle v = points_only.insert(point.first, hint);
     // A seam vertex at the 2-D position of an earlier one shares that vertex and its index.
     if (v->info().index < 0) v->info() = point.second;
     handle[point.second.index] = v;
@@ -1141,6 +1147,8 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     for (size_t k = 0; k < points.size(); k += stride) insert_point(points[k]);
   }
   for (const auto& point : points) insert_point(point);
+  Delaunay triangulation;
+  triangulation.CGAL::Triangulation_2<Kernel, TriangulationData>::swap(points_only);
   // With the seam laid out at locally averaged depth (the default; filtered depth laid out as
   // measured is about as regular), about 90 % of the kept edges are already edges of the triangulation:
   // those are marked as constrained in place (which keeps it constrained Delaunay), without
