@@ -337,6 +337,8 @@ class KeptEdges {
     return kept->side.forward == (q < p);  // forward: the kept triangle runs from the lower end to the higher
   }
 
+  const std::vector<Kept>& all() const { return kept_; }
+
  private:
   std::vector<int> first_;  // per seam vertex: where its kept edges to higher vertices begin in kept_
   std::vector<Kept> kept_;
@@ -390,6 +392,101 @@ class Creases {
   const KeptEdges& kept_edges_;
 };
 
+// Where the seam's creases (Creases) may be, so that each step after the first looks at those
+// edges instead of every edge of the triangulation (a look at every edge cost about as much as
+// the step's own work, four times a seam): the creased edges found by the last look, and every
+// edge of the faces around the points whose faces have changed since (flipped, made anew, a
+// corner moved) or whose kept triangle has (its third corner moved). An edge's crease depends on
+// its two faces and, beyond a kept edge, on the kept triangle's corners only.
+class CreaseWatch {
+ public:
+  using VertexPair = std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>;
+
+  // `handle`: each seam point's vertex (kept edges' ends are never removed: they are constrained).
+  // `everywhere`: every look is at every edge (the reference the watch must match).
+  CreaseWatch(const Delaunay& triangulation, const Creases& creases, const KeptEdges& kept_edges, size_t points,
+              const std::vector<Delaunay::Vertex_handle>& handle, bool everywhere)
+      : triangulation_(triangulation), creases_(creases), handle_(handle), first_with_third_(points + 1, 0), always_everywhere_(everywhere) {
+    // The kept edges by their kept triangle's third corner, where that is a seam point.
+    for (const KeptEdges::Kept& kept : kept_edges.all()) {
+      if (kept.side.third_vertex >= 0) ++first_with_third_[kept.side.third_vertex + 1];
+    }
+    for (size_t i = 1; i < first_with_third_.size(); ++i) first_with_third_[i] += first_with_third_[i - 1];
+    end_of_with_third_.assign(first_with_third_.begin(), first_with_third_.end() - 1);
+    edge_end_by_third_.resize(first_with_third_.back());
+    for (const KeptEdges::Kept& kept : kept_edges.all()) {
+      if (kept.side.third_vertex >= 0) edge_end_by_third_[end_of_with_third_[kept.side.third_vertex]++] = kept.i;
+    }
+  }
+
+  // The faces around v have changed.
+  void faces_changed(Delaunay::Vertex_handle v) {
+    if (!everywhere_) changed_.push_back(v);
+  }
+
+  // Point v has moved: its faces, and the kept triangles it is the third corner of, have changed.
+  void point_moved(Delaunay::Vertex_handle v) {
+    faces_changed(v);
+    const int i = v->info().index;
+    for (int k = first_with_third_[i]; k < end_of_with_third_[i]; ++k) faces_changed(handle_[edge_end_by_third_[k]]);
+  }
+
+  // These vertices are about to leave the triangulation (sorted by address).
+  void forget(const std::vector<Delaunay::Vertex_handle>& removed_by_address) {
+    auto removed = [&](Delaunay::Vertex_handle v) { return std::binary_search(removed_by_address.begin(), removed_by_address.end(), v); };
+    std::erase_if(creased_pairs_, [&](const VertexPair& pair) { return removed(pair.first) || removed(pair.second); });
+    std::erase_if(changed_, removed);
+  }
+
+  // The edges that may be creased now, each once: every edge whose cosine (Creases) is not at
+  // least kCreaseCosine (NaN included, as relax_creases counts it). Valid until the next change.
+  const std::vector<Delaunay::Edge>& creased() {
+    creased_.clear();
+    auto consider = [&](Delaunay::Face_handle f, int i) {
+      if (!(creases_.cosine(f, i) >= kCreaseCosine)) creased_.emplace_back(f, i);
+    };
+    if (everywhere_) {
+      for (auto edge = triangulation_.finite_edges_begin(); edge != triangulation_.finite_edges_end(); ++edge) consider(edge->first, edge->second);
+      everywhere_ = always_everywhere_;
+    } else {
+      std::vector<VertexPair>& pairs = creased_pairs_;
+      std::sort(changed_.begin(), changed_.end());
+      changed_.erase(std::unique(changed_.begin(), changed_.end()), changed_.end());
+      for (const Delaunay::Vertex_handle v : changed_) {
+        Delaunay::Face_circulator f = triangulation_.incident_faces(v), first = f;
+        do {
+          if (triangulation_.is_infinite(f)) continue;
+          for (int i = 0; i < 3; ++i) pairs.push_back(ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))));
+        } while (++f != first);
+      }
+      changed_.clear();
+      std::sort(pairs.begin(), pairs.end());
+      pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+      for (const auto& [u, v] : pairs) {
+        Delaunay::Face_handle f;
+        int i = 0;
+        if (triangulation_.is_edge(u, v, f, i)) consider(f, i);
+      }
+    }
+    creased_pairs_.clear();
+    for (const auto& [f, i] : creased_) creased_pairs_.push_back(ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))));
+    return creased_;
+  }
+
+ private:
+  static VertexPair ordered(Delaunay::Vertex_handle u, Delaunay::Vertex_handle v) { return u < v ? VertexPair{u, v} : VertexPair{v, u}; }
+
+  const Delaunay& triangulation_;
+  const Creases& creases_;
+  const std::vector<Delaunay::Vertex_handle>& handle_;
+  std::vector<int> first_with_third_, end_of_with_third_, edge_end_by_third_;
+  bool always_everywhere_;
+  bool everywhere_ = true;  // nothing looked at yet, or always_everywhere_
+  std::vector<VertexPair> creased_pairs_;  // the creased edges the last look found
+  std::vector<Delaunay::Vertex_handle> changed_;
+  std::vector<Delaunay::Edge> creased_;
+};
+
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
 // Rippa's data-dependent triangulations). Delaunay in 2-D chooses each quadrilateral's diagonal
 // by the layout alone; where the two meshes' points lie a few millimetres apart in depth, the
@@ -403,12 +500,12 @@ class Creases {
 // otherwise it is flipped back. A flip takes its two faces over (CGAL's data structure reuses
 // them), so only theirs needs setting again. Every finite face's info must be set
 // (set_face_info) and is kept so. `flat`: the points' layout, which after fairing is no longer
-// CGAL's (fair_seam). The creases looked for first are those on the edges of `faces`, or on every
-// edge where it is empty. `candidates` is scratch.
+// CGAL's (fair_seam). The creases looked for first are those on the edges of `faces`, or every
+// crease the watch knows where it is empty. `candidates` is scratch.
 template <typename Output>
 void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& positions, const std::vector<Eigen::Vector2f>& flat,
                       float max_edge2, Output&& output, const Creases& creases, const std::vector<Delaunay::Face_handle>& faces,
-                      std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+                      CreaseWatch& watch, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
   // The sharpest crease over edge (f, i) and the four outer edges of its quadrilateral.
   auto sharpest = [&](Delaunay::Face_handle f, int i) {
@@ -437,7 +534,7 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
   };
   candidates.clear();
   if (faces.empty()) {
-    for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) queue_if_creased(edge->first, edge->second);
+    for (const auto& [f, i] : watch.creased()) queue_if_creased(f, i);
   }
   for (const Delaunay::Face_handle f : faces) {
     for (int i = 0; i < 3; ++i) queue_if_creased(f, i);
@@ -480,6 +577,7 @@ void flip_out_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f
     if (cgal_side_u == CGAL::COLLINEAR || cgal_side_u != -cgal_side_v) continue;
     if ((positions[w->info().index] - positions[x->info().index]).squaredNorm() > max_edge2) continue;
     triangulation.flip(f, i);  // f and g now hold the faces of edge (w, x)
+    for (const Delaunay::Vertex_handle corner : {u, v, w, x}) watch.faces_changed(corner);
     set_face_info(f, positions, output);
     set_face_info(g, positions, output);
     Delaunay::Face_handle h;
@@ -742,7 +840,8 @@ constexpr int kCreaseRelaxRounds = 3;
 template <typename Output, typename GridUnfolded>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
                    GridUnfolded&& grid_unfolded, const SeamLayout& layout, float max_edge2, float most, int rounds,
-                   std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output, const Creases& creases) {
+                   std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output, const Creases& creases,
+                   CreaseWatch& watch) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
   auto is_seam_face = [](Delaunay::Face_handle f) {
     return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
@@ -757,7 +856,13 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
       corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), f->neighbor(i)->vertex(triangulation.mirror_index(f, i))});
     }
   };
-  for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) queue_creases_of(f);
+  // Every crease: the corners of its quadrilateral, as queue_creases_of gives them from either
+  // output face of the edge (a crease has one; the cosine is the same from both).
+  for (const auto& [f, i] : watch.creased()) {
+    const Delaunay::Face_handle g = f->neighbor(i);
+    if (!f->info().output && !g->info().output) continue;
+    corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), g->vertex(triangulation.mirror_index(f, i))});
+  }
   // The faces around the point being moved, with their signed areas and output before the move
   // (a Delaunay vertex rarely has more than 16 faces; one with more stays).
   constexpr size_t kMostFaces = 16;
@@ -819,6 +924,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
         continue;
       }
       for (size_t k = 0; k < faces; ++k) set_face_info(around[k], positions, output);
+      watch.point_moved(v);
       moved.push_back(v);
     }
     corners.clear();
@@ -848,7 +954,7 @@ constexpr int kCreaseDropRounds = 2;
 template <typename Output>
 void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>& fixed, const std::vector<Eigen::Vector3f>& positions,
                         const std::vector<Eigen::Vector2f>& flat, float max_edge2, Output&& output, const Creases& creases, int rounds,
-                        std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+                        CreaseWatch& watch, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
   if (triangulation.dimension() != 2) return;
   auto may_go = [&](Delaunay::Vertex_handle v) {
     const int i = v->info().index;
@@ -879,7 +985,7 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
     dropped.clear();
     // Every crease the first time; then those on the faces the last round made or flipped.
     if (round == 0) {
-      for (auto edge = triangulation.finite_edges_begin(); edge != triangulation.finite_edges_end(); ++edge) consider(edge->first, edge->second);
+      for (const auto& [f, i] : watch.creased()) consider(f, i);
     } else {
       for (const Delaunay::Face_handle f : faces) {
         for (int i = 0; i < 3; ++i) consider(f, i);
@@ -903,7 +1009,12 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
     around.erase(std::remove_if(around.begin(), around.end(),
                                 [&](Delaunay::Vertex_handle w) { return std::binary_search(dropped.begin(), dropped.end(), w, by_index); }),
                  around.end());
+    std::vector<Delaunay::Vertex_handle> dropped_by_address = dropped;
+    std::sort(dropped_by_address.begin(), dropped_by_address.end());
+    watch.forget(dropped_by_address);
     for (const Delaunay::Vertex_handle v : dropped) triangulation.remove(v);
+    // Every new face has its corners among the points around.
+    for (const Delaunay::Vertex_handle w : around) watch.faces_changed(w);
     if (triangulation.dimension() != 2) return;
     faces.clear();
     for (const Delaunay::Vertex_handle w : around) {
@@ -913,7 +1024,7 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
       } while (++f != first);
     }
     for (const Delaunay::Face_handle f : faces) set_face_info(f, positions, output);
-    flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, faces, candidates);
+    flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, faces, watch, candidates);
   }
 }
 
@@ -924,17 +1035,16 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
 // with all three corners on kept edges, so that none may go (samba-4cam frames 0–39 with the
 // true poses: 5–22 faces a frame set without the filter, of 6 000–8 000 seam faces; 2 in the 40
 // filtered). Returns how many.
-int drop_creased_faces(Delaunay& triangulation, const Creases& creases) {
+int drop_creased_faces(Delaunay& triangulation, const Creases& creases, CreaseWatch& watch) {
   std::vector<Delaunay::Face_handle> creased;
-  for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
-    if (!face->info().output) continue;
-    for (int i = 0; i < 3; ++i) {
-      if (creases.cosine(face, i) < kCreaseCosine) {
-        creased.push_back(face);
-        break;
-      }
+  for (const auto& [f, i] : watch.creased()) {
+    if (!(creases.cosine(f, i) < kCreaseCosine)) continue;
+    for (const Delaunay::Face_handle face : {f, f->neighbor(i)}) {
+      if (face->info().output && !triangulation.is_infinite(face)) creased.push_back(face);
     }
   }
+  std::sort(creased.begin(), creased.end());
+  creased.erase(std::unique(creased.begin(), creased.end()), creased.end());
   // Both faces of a crease between two output faces go (which one is wrong is not known).
   for (const Delaunay::Face_handle f : creased) f->info().output = false;
   return static_cast<int>(creased.size());
@@ -1206,8 +1316,9 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   };
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
   const Creases creases(triangulation, positions, kept_edges);
+  CreaseWatch crease_watch(triangulation, creases, kept_edges, positions.size(), handle, !options.crease_watch);
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
-  flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, {}, crease_candidates);
+  flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, {}, crease_watch, crease_candidates);
   if (options.fairing_iterations > 0) {
     // Does point i at p leave the pixel grid around it unfolded in its camera?
     auto grid_unfolded = [&](int i, const Eigen::Vector3f& p) {
@@ -1215,10 +1326,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
       return keeps_pixel_grid_unfolded(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions.data());
     };
     relax_creases(triangulation, normals, taken.shared, grid_unfolded, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
-                  positions, flat, output, creases);
+                  positions, flat, output, creases, crease_watch);
   }
-  drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_candidates);
-  seam.creased_faces_dropped = drop_creased_faces(triangulation, creases);
+  drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_watch, crease_candidates);
+  seam.creased_faces_dropped = drop_creased_faces(triangulation, creases, crease_watch);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];

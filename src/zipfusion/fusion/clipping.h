@@ -52,6 +52,7 @@ struct SeamOptions {
   float ownership_distance = 0.02f; // d_r: a seam point of one mesh is dropped where the other owns the surface this close, and moved towards it within this depth
   int smoothing_radius = 2;         // a seam point lies at the mean depth of its surface over (2·this+1)² pixels; 0: as measured
   int fairing_iterations = 1;       // rounds of smoothing the seam's points along their rays (fair_seam), then the creases' corners (relax_creases); 0: neither
+  bool crease_watch = true;         // each step after the first looks for creases only where they can be; false: on every edge (the same seams, slower; the tests' reference)
 };
 
 struct Seam {

@@ -240,7 +240,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
                                  .ownership_distance = d_r,
                                  .smoothing_radius = options.seam_smoothing_px < 0 ? 2 : options.seam_smoothing_px,
-                                 .fairing_iterations = options.seam_fairing_iterations};
+                                 .fairing_iterations = options.seam_fairing_iterations,
+                                 .crease_watch = options.seam_crease_watch};
   // Two phases. The seams take their triangles out of the meshes in rounds (the pairs of a round
   // share no camera, so each mesh is edited in a fixed order); each taken triangle is marked
   // with its round. Then every seam is triangulated at once, the pairs spread over the threads by

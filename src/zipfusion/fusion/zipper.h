@@ -40,6 +40,7 @@ struct ZipperOptions {
   // (ReconstructOptions::seam_smoothing_px(): 2 on unfiltered depth, 1 on filtered; here: 2).
   int seam_smoothing_px = -1;
   int seam_fairing_iterations = 1;      // seams: rounds of smoothing their points along their rays, then the creases' corners (SeamOptions::fairing_iterations); 0: neither
+  bool seam_crease_watch = true;        // seams: each step after the first looks for creases where they can be (SeamOptions::crease_watch); false: on every edge, the reference (tests)
   double min_overlap_share = 0.01;      // a pair overlaps when this share of one mesh lies within d_r of the other
   double sdc_max_depth_jump_m = 0.03;   // the SDC threshold of input meshes that give none (ZipperCamera); coarse levels scale it by 2^level
   double sdc_growth_depth_m = SdcOptions{}.growth_depth_m;  // the input meshes' SdcOptions::growth_depth_m (their coarse levels grow alike)
