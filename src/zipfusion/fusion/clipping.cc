@@ -442,6 +442,7 @@ class CreaseWatch {
   // least kCreaseCosine (NaN included, as relax_creases counts it). Valid until the next change.
   const std::vector<Delaunay::Edge>& creased() {
     creased_.clear();
+    if (triangulation_.dimension() != 2) return creased_;  // no faces (all points on a line)
     auto consider = [&](Delaunay::Face_handle f, int i) {
       if (!(creases_.cosine(f, i) >= kCreaseCosine)) creased_.emplace_back(f, i);
     };
