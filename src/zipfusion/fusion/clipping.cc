@@ -402,20 +402,20 @@ class CreaseWatch {
  public:
   using VertexPair = std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>;
 
-  // `handle`: each seam point's vertex (kept edges' ends are never removed: they are constrained).
-  // `everywhere`: every look is at every edge (the reference the watch must match).
+  // `handle`: each seam point's vertex, as inserted. `everywhere`: every look is at every edge
+  // (the reference the watch must match).
   CreaseWatch(const Delaunay& triangulation, const Creases& creases, const KeptEdges& kept_edges, size_t points,
               const std::vector<Delaunay::Vertex_handle>& handle, bool everywhere)
       : triangulation_(triangulation), creases_(creases), handle_(handle), first_with_third_(points + 1, 0), always_everywhere_(everywhere) {
-    // The kept edges by their kept triangle's third corner, where that is a seam point.
+    // The kept edges' lower ends by their kept triangle's third corner, where that is a seam point.
     for (const KeptEdges::Kept& kept : kept_edges.all()) {
       if (kept.side.third_vertex >= 0) ++first_with_third_[kept.side.third_vertex + 1];
     }
     for (size_t i = 1; i < first_with_third_.size(); ++i) first_with_third_[i] += first_with_third_[i - 1];
-    end_of_with_third_.assign(first_with_third_.begin(), first_with_third_.end() - 1);
+    std::vector<int> next(first_with_third_.begin(), first_with_third_.end() - 1);
     edge_end_by_third_.resize(first_with_third_.back());
     for (const KeptEdges::Kept& kept : kept_edges.all()) {
-      if (kept.side.third_vertex >= 0) edge_end_by_third_[end_of_with_third_[kept.side.third_vertex]++] = kept.i;
+      if (kept.side.third_vertex >= 0) edge_end_by_third_[next[kept.side.third_vertex]++] = kept.i;
     }
   }
 
@@ -425,10 +425,12 @@ class CreaseWatch {
   }
 
   // Point v has moved: its faces, and the kept triangles it is the third corner of, have changed.
+  // Points move only before any is dropped (relax_creases, then drop_crease_points), so the kept
+  // edges' ends are all still in the triangulation.
   void point_moved(Delaunay::Vertex_handle v) {
     faces_changed(v);
     const int i = v->info().index;
-    for (int k = first_with_third_[i]; k < end_of_with_third_[i]; ++k) faces_changed(handle_[edge_end_by_third_[k]]);
+    for (int k = first_with_third_[i]; k < first_with_third_[i + 1]; ++k) faces_changed(handle_[edge_end_by_third_[k]]);
   }
 
   // These vertices are about to leave the triangulation (sorted by address).
@@ -450,7 +452,9 @@ class CreaseWatch {
       for (auto edge = triangulation_.finite_edges_begin(); edge != triangulation_.finite_edges_end(); ++edge) consider(edge->first, edge->second);
       everywhere_ = always_everywhere_;
     } else {
-      std::vector<VertexPair>& pairs = creased_pairs_;
+      // The last look's creased edges, and every edge of the faces around the changed points.
+      std::vector<VertexPair>& pairs = candidates_;
+      pairs = creased_pairs_;
       std::sort(changed_.begin(), changed_.end());
       changed_.erase(std::unique(changed_.begin(), changed_.end()), changed_.end());
       for (const Delaunay::Vertex_handle v : changed_) {
@@ -480,12 +484,15 @@ class CreaseWatch {
   const Delaunay& triangulation_;
   const Creases& creases_;
   const std::vector<Delaunay::Vertex_handle>& handle_;
-  std::vector<int> first_with_third_, end_of_with_third_, edge_end_by_third_;
+  // Per seam point, where its kept edges (by their lower end) begin in edge_end_by_third_: those
+  // whose kept triangle has it as third corner.
+  std::vector<int> first_with_third_, edge_end_by_third_;
   bool always_everywhere_;
-  bool everywhere_ = true;  // nothing looked at yet, or always_everywhere_
-  std::vector<VertexPair> creased_pairs_;  // the creased edges the last look found
-  std::vector<Delaunay::Vertex_handle> changed_;
-  std::vector<Delaunay::Edge> creased_;
+  bool everywhere_ = true;                        // nothing looked at yet, or always_everywhere_
+  std::vector<VertexPair> creased_pairs_;         // the creased edges the last look found
+  std::vector<Delaunay::Vertex_handle> changed_;  // the points whose faces changed since
+  std::vector<VertexPair> candidates_;            // scratch of creased()
+  std::vector<Delaunay::Edge> creased_;           // what creased() returns
 };
 
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
@@ -861,7 +868,6 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
   // output face of the edge (a crease has one; the cosine is the same from both).
   for (const auto& [f, i] : watch.creased()) {
     const Delaunay::Face_handle g = f->neighbor(i);
-    if (!f->info().output && !g->info().output) continue;
     corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), g->vertex(triangulation.mirror_index(f, i))});
   }
   // The faces around the point being moved, with their signed areas and output before the move
@@ -1036,12 +1042,12 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
 // with all three corners on kept edges, so that none may go (samba-4cam frames 0–39 with the
 // true poses: 5–22 faces a frame set without the filter, of 6 000–8 000 seam faces; 2 in the 40
 // filtered). Returns how many.
-int drop_creased_faces(Delaunay& triangulation, const Creases& creases, CreaseWatch& watch) {
+int drop_creased_faces(const Creases& creases, CreaseWatch& watch) {
   std::vector<Delaunay::Face_handle> creased;
   for (const auto& [f, i] : watch.creased()) {
     if (!(creases.cosine(f, i) < kCreaseCosine)) continue;
     for (const Delaunay::Face_handle face : {f, f->neighbor(i)}) {
-      if (face->info().output && !triangulation.is_infinite(face)) creased.push_back(face);
+      if (face->info().output) creased.push_back(face);  // an infinite face never is
     }
   }
   std::sort(creased.begin(), creased.end());
@@ -1259,7 +1265,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   }
   for (const auto& point : points) insert_point(point);
   Delaunay triangulation;
-  triangulation.CGAL::Triangulation_2<Kernel, TriangulationData>::swap(points_only);
+  triangulation.swap(points_only);
   // With the seam laid out at locally averaged depth (the default; filtered depth laid out as
   // measured is about as regular), about 90 % of the kept edges are already edges of the triangulation:
   // those are marked as constrained in place (which keeps it constrained Delaunay), without
@@ -1330,7 +1336,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
                   positions, flat, output, creases, crease_watch);
   }
   drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_watch, crease_candidates);
-  seam.creased_faces_dropped = drop_creased_faces(triangulation, creases, crease_watch);
+  seam.creased_faces_dropped = drop_creased_faces(creases, crease_watch);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];

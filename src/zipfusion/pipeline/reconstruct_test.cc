@@ -262,9 +262,10 @@ TEST(Reconstruct, ZipperMeshIsTheSameOnAnyNumberOfThreads) {
 // Each step after the first of a seam's crease mending (flips, relaxing, dropping points, then
 // faces: clipping.cc) looks for creases only where the steps before can have made or left one
 // (CreaseWatch). It must find every one a look at every edge finds: the same meshes, bit for bit,
-// on frames where each step has creases to mend (unfiltered, some are left as gaps). Without the
-// faces around a dropped point, frame 35 unfiltered differs; without those of a flip, frame 21
-// filtered and frame 35.
+// on frames with creases to mend; some are left as gaps, so the last step, which only looks, has
+// some to find. Without the faces around a dropped point, frame 35 unfiltered differs; without
+// those of a flip, frame 21 filtered and frame 35; without those of a moved point, frame 21
+// unfiltered. (No frame of samba-4cam needs the kept triangles of a moved third corner.)
 TEST(Reconstruct, SeamsLookForCreasesWhereTheyCanBe) {
   int gaps = 0;
   for (const int frame : {0, 21, 30, 35}) {
