@@ -46,10 +46,8 @@ inline void pixel_pair(const std::uint8_t* bytes, int size, int pixel, int right
 
 // One channel (`shift` 0, 8, 16) of sample_bilinear's mix of four packed pixels.
 inline std::uint32_t mix_channel(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d, int wx, int wy, int shift) {
-  const int pa = static_cast<int>((a >> shift) & 0xFF), pb = static_cast<int>((b >> shift) & 0xFF);
-  const int pc = static_cast<int>((c >> shift) & 0xFF), pd = static_cast<int>((d >> shift) & 0xFF);
-  const int top = pa * 256 + wx * (pb - pa), bottom = pc * 256 + wx * (pd - pc);
-  return static_cast<std::uint32_t>(((top * 256 + wy * (bottom - top) + 32768) >> 16) & 0xFF) << shift;
+  auto channel = [shift](std::uint32_t packed) { return static_cast<int>((packed >> shift) & 0xFF); };
+  return static_cast<std::uint32_t>(bilinear_mix(channel(a), channel(b), channel(c), channel(d), wx, wy) & 0xFF) << shift;
 }
 
 // sample_bilinear's colours at (x[i], y[i]), i < count ≤ ColorLookup::kRowChunk, packed

@@ -16,6 +16,13 @@ namespace zipfusion {
 
 inline constexpr Rgb8 kNoColor{128, 128, 128};
 
+//! One channel of the bilinear mix of pixels a, b (to its right), c (below a) and d, with the
+//! weights wx, wy in 1/256ths: in integers, rounded to nearest (sample_bilinear and its row kernel).
+inline int bilinear_mix(int a, int b, int c, int d, int wx, int wy) {
+  const int top = a * 256 + wx * (b - a), bottom = c * 256 + wx * (d - c);
+  return (top * 256 + wy * (bottom - top) + 32768) >> 16;
+}
+
 //! Element function: bilinear sample at (x, y) (pixel centres at integers); kNoColor outside.
 //! Fixed point: the weights in 1/256ths, as exact as the 8-bit channels they mix.
 inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
@@ -26,10 +33,7 @@ inline Rgb8 sample_bilinear(const ColorImage& image, float x, float y) {
   const Rgb8* row0 = image.data.data() + static_cast<size_t>(y0) * image.width;
   const Rgb8* row1 = image.data.data() + static_cast<size_t>(y1) * image.width;
   const Rgb8 a = row0[x0], b = row0[x1], c = row1[x0], d = row1[x1];
-  auto mix = [&](int pa, int pb, int pc, int pd) {
-    const int top = pa * 256 + wx * (pb - pa), bottom = pc * 256 + wx * (pd - pc);
-    return static_cast<unsigned char>((top * 256 + wy * (bottom - top) + 32768) >> 16);
-  };
+  auto mix = [&](int pa, int pb, int pc, int pd) { return static_cast<unsigned char>(bilinear_mix(pa, pb, pc, pd, wx, wy)); };
   return {mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
 }
 
