@@ -75,6 +75,10 @@ void filter_row(const float* centre_row, int width, float inv_two_range_sigma2, 
   }
 }
 
+// Windows up to this radius gather each pixel's taps (filter_row): the pair sums' blocks cost more
+// to clear and add up than the few taps they save.
+constexpr int kLargestGatheredRadius = 2;
+
 // Rows per block of the square window's pair sums: fixed, so the order in which a pixel's sums
 // are formed, and so the result, does not depend on the number of threads.
 constexpr int kBlockRows = 32;
@@ -196,6 +200,17 @@ void bilateral_filter(const Image<float>& depth_m, const BilateralKernel& kernel
     image.data.resize(depth_m.size());
   };
   resize(out);
+  if (!kernel.separable && r <= kLargestGatheredRadius) {
+    // Each pixel's taps gathered, row by row of the window, as bilateral_pixel adds them.
+    for_rows([&](int v, std::vector<float>& sums) {
+      filter_row(row_of(depth_m, v), width, inv, sums, out_row_of(out, v), [&](auto&& add) {
+        for (int dy = std::max(-r, -v); dy <= std::min(r, height - 1 - v); ++dy) {
+          for (int dx = -r; dx <= r; ++dx) add(row_of(depth_m, v + dy), dx, kernel.spatial[(dy + r) * (2 * r + 1) + dx + r]);
+        }
+      });
+    });
+    return;
+  }
   if (!kernel.separable) {
     filter_square(depth_m, kernel, out, buffers, num_threads);
     return;

@@ -83,7 +83,7 @@ struct BilateralRowSpan {
 struct BilateralScratch {
   Image<float> sums;                         // the square window's per-block sums, or the separable row pass
   std::vector<BilateralRowSpan> row_spans;   // square window: each row's
-  std::vector<std::vector<float>> row_sums;  // separable: per block of rows, weights then values
+  std::vector<std::vector<float>> row_sums;  // separable and radius ≤ 2: per block of rows, weights then values
 };
 
 //! Filters `depth_m` (metres, 0 = none) into `out` (resized). `out` must not alias the input;

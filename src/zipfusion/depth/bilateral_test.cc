@@ -77,10 +77,15 @@ TEST_P(BilateralForm, ThreadCountDoesNotChangeTheResult) {
   EXPECT_EQ(one, two);
 }
 
-// The vectorised row kernels form the same sums as the reference element function, pixel by pixel.
-TEST(Bilateral, RowKernelsMatchTheElementFunction) {
+// The vectorised row kernels form the same sums as the reference element function, pixel by pixel:
+// the pair sums of the paper's 13×13 window, and the gathered taps of small windows (radius 1 and 2).
+class BilateralRadius : public ::testing::TestWithParam<int> {};
+
+INSTANTIATE_TEST_SUITE_P(Radii, BilateralRadius, ::testing::Values(1, 2, 3, 6));
+
+TEST_P(BilateralRadius, RowKernelsMatchTheElementFunction) {
   const Image<float> input = noisy_step(70, 45, 5);
-  const BilateralKernel kernel(BilateralOptions{});
+  const BilateralKernel kernel(BilateralOptions{.spatial_sigma_px = GetParam() <= 2 ? 1.0 : 4.0, .radius_px = GetParam()});
   Image<float> output;
   bilateral_filter(input, kernel, output, 2);
   for (int v = 0; v < input.height; ++v) {
@@ -88,6 +93,30 @@ TEST(Bilateral, RowKernelsMatchTheElementFunction) {
       EXPECT_NEAR(output(u, v), bilateral_pixel(u, v, input.data.data(), input.width, input.height, kernel), 1e-5f) << u << "," << v;
     }
   }
+}
+
+TEST_P(BilateralRadius, ThreadCountDoesNotChangeTheResult) {
+  const Image<float> input = noisy_step(50, 40, 9);
+  Image<float> one, two;
+  const BilateralKernel kernel(BilateralOptions{.spatial_sigma_px = 1.5, .radius_px = GetParam(), .range_sigma_m = 0.03});
+  bilateral_filter(input, kernel, one, 1);
+  bilateral_filter(input, kernel, two, 2);
+  EXPECT_EQ(one, two);
+}
+
+// The 5×5 window with σ 1 px (the small filter `zipfusion bench` compares) still removes most of
+// the noise: it averages about 9 pixels' worth, σ/3 for independent noise.
+TEST(Bilateral, SmallWindowSmoothsSurfacesAndKeepsSteps) {
+  const Image<float> input = noisy_step(64, 48, 3);
+  Image<float> output;
+  bilateral_filter(input, BilateralKernel(BilateralOptions{.spatial_sigma_px = 1, .radius_px = 2}), output, 2);
+  EXPECT_LT(rms_error(output, 0, 30, 2.0f), rms_error(input, 0, 30, 2.0f) / 2.5);
+  EXPECT_LT(rms_error(output, 34, 64, 2.3f), rms_error(input, 34, 64, 2.3f) / 2.5);
+  for (int v = 0; v < 48; ++v) {
+    EXPECT_LT(std::abs(output(31, v) - 2.0f), 0.015f + std::abs(input(31, v) - 2.0f)) << v;
+    EXPECT_LT(std::abs(output(32, v) - 2.3f), 0.015f + std::abs(input(32, v) - 2.3f)) << v;
+  }
+  for (size_t i = 0; i < input.size(); ++i) EXPECT_EQ(output.data[i] == 0, input.data[i] == 0) << i;
 }
 
 // The range weight's polynomial exponential stays within 0.7 % of exp(−t) over the 3σ it covers.
