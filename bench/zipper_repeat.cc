@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "samba_frame.h"
+#include "zipfusion/core/memory.h"
 #include "zipfusion/fusion/zipper.h"
 #include "zipfusion/pipeline/reconstruct.h"
 
@@ -38,6 +39,7 @@ constexpr const char* kZipperFunction =
     "zipfusion::ZipperOptions const&, zipfusion::ZipperScratch&, zipfusion::TriangleMesh)";
 
 int main(int argc, char** argv) {
+  keep_freed_memory();
   int frame = 0, repeat = 3, threads = 1;
   bool filtered = true;
   std::string capture;

@@ -8,6 +8,7 @@
 
 #include "cli/commands.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/memory.h"
 
 namespace zipfusion::cli {
 
@@ -22,6 +23,7 @@ void show_progress(const std::string& label, int done, int total) {
 }  // namespace zipfusion::cli
 
 int main(int argc, char** argv) {
+  zipfusion::keep_freed_memory();
   CLI::App app{"zipfusion: one clean, coloured, connected triangle mesh per frame from several RGB-D cameras"};
   app.set_version_flag("--version", "zipfusion 0.1.0");
   app.require_subcommand(1);
