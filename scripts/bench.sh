@@ -32,9 +32,12 @@ step "samba-4cam: stages, threads, coarse-to-fine, memory over $SOAK frame sets"
 
 step "samba-4cam: quality of each mode (reconstruct + eval)"
 for mode in zipper separate; do
-  for filter in bilateral none; do
+  # bilateral5x5: the filter over 5×5 pixels (σ 2 px), as `zipfusion bench`'s "+5x5 filter" columns.
+  for filter in bilateral bilateral5x5 none; do
     name="${mode}_${filter}"
-    "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --mode "$mode" --filter "$filter" \
+    flags=(--filter "$filter")
+    [[ "$filter" == bilateral5x5 ]] && flags=(--filter bilateral --bilateral-radius 2 --bilateral-sigma-px 2)
+    "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --mode "$mode" "${flags[@]}" \
       --out "$OUT/meshes/$name" > /dev/null
     "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
   done

@@ -23,7 +23,7 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_GT(report["decode_ms"]["median"].get<double>(), 0);
   std::map<std::string, nlohmann::json> configs;
   for (const auto& c : report["configs"]) configs[c["name"]] = c;
-  ASSERT_EQ(configs.size(), 10u);
+  ASSERT_EQ(configs.size(), 12u);
   for (const auto& [name, c] : configs) {
     SCOPED_TRACE(name);
     const double total = c["ms"]["total"]["median"];
@@ -52,6 +52,11 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_EQ(configs["zipper border ownership"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_NE(configs["zipper border ownership"]["triangles"], configs["zipper"]["triangles"]);
   EXPECT_GT(configs["zipper+separable filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  // The 5×5 filter filters, and only the zipper one zippers.
+  EXPECT_GT(configs["zipper+5x5 filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_GT(configs["separate+5x5 filter"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_EQ(configs["separate+5x5 filter"]["ms"]["clipping"]["median"].get<double>(), 0);
+  EXPECT_LT(configs["zipper+5x5 filter"]["triangles"].get<double>(), configs["separate+5x5 filter"]["triangles"].get<double>());
   // Level of detail 1: a quarter of the triangles, give or take the seams.
   for (const char* lod : {"zipper lod 1", "zipper+filter lod 1"}) {
     const double share = configs[lod]["triangles"].get<double>() / configs["zipper"]["triangles"].get<double>();
