@@ -188,7 +188,7 @@ void run_bench(const BenchArgs& args) {
   configs.push_back({"zipper+separable filter", options(ReconstructMode::kZipper, true)});
   configs.back().options.filter.separable = true;
   // The filter over 5×5 pixels (σ 2 px) instead of the paper's 13×13 (σ 4 px): on samba-4cam more
-  // accurate and more complete, at a fifth of the filter's time (docs/design.md).
+  // accurate and more complete, at a quarter of the filter's time (docs/design.md).
   for (const auto& [name, mode] : {std::pair{"zipper+5x5 filter", ReconstructMode::kZipper}, std::pair{"separate+5x5 filter", ReconstructMode::kSeparate}}) {
     configs.push_back({name, options(mode, true)});
     configs.back().options.filter.radius_px = 2;
