@@ -10,8 +10,8 @@ namespace zipfusion {
 
 void keep_freed_memory() {
 #if defined(__GLIBC__)
-  // Blocks up to 32 MiB (the largest threshold glibc accepts on 64-bit systems; a frame set's
-  // largest buffers are a few MiB) from the heap, and the heap never trimmed.
+  // Blocks up to 32 MiB from the heap (mallopt(3)'s documented maximum on 64-bit systems; a frame
+  // set's largest buffers are a few MiB), and a heap trimmed only once 1 GiB lies free at its top.
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif

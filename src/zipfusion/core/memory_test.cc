@@ -7,12 +7,15 @@
 
 #if defined(__GLIBC__)
 #include <malloc.h>
+#if __GLIBC_PREREQ(2, 33)
+#define ZF_HAS_MALLINFO2 1
+#endif
 #endif
 
 namespace zipfusion {
 namespace {
 
-#if defined(__GLIBC__)
+#if defined(ZF_HAS_MALLINFO2)
 // Where the allocation goes is observable, so the compiler may not drop it.
 void* volatile g_block = nullptr;
 
