@@ -110,7 +110,7 @@ TEST_P(BilateralRadius, ThreadCountDoesNotChangeTheResult) {
 }
 
 // The 5×5 window with σ 2 px (the small filter `zipfusion bench` compares) does the same job over
-// fewer pixels: about 16 pixels' worth for independent noise, σ/4.
+// fewer pixels: its weights average about 23 pixels' worth of independent noise, σ/4.8.
 TEST(Bilateral, SmallWindowSmoothsSurfacesAndKeepsSteps) {
   const Image<float> input = noisy_step(64, 48, 3);
   Image<float> output;
