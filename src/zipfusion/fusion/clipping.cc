@@ -856,21 +856,21 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
     return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
   };
   std::vector<Delaunay::Vertex_handle> corners;
-  // Queues the four corners of each creased edge of output face f (beyond a kept edge the fourth
-  // is not a seam vertex, or not this seam's to move).
+  // Queues the four corners of the quadrilateral of edge (f, i): f's, then the one across the edge
+  // (beyond a kept edge it is not a seam vertex, or not this seam's to move).
+  auto queue_quadrilateral = [&](Delaunay::Face_handle f, int i) {
+    corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), f->neighbor(i)->vertex(triangulation.mirror_index(f, i))});
+  };
+  // Queues the quadrilateral of each creased edge of output face f.
   auto queue_creases_of = [&](Delaunay::Face_handle f) {
     if (!f->info().output) return;
     for (int i = 0; i < 3; ++i) {
-      if (creases.cosine(f, i) >= kCreaseCosine) continue;
-      corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), f->neighbor(i)->vertex(triangulation.mirror_index(f, i))});
+      if (!(creases.cosine(f, i) >= kCreaseCosine)) queue_quadrilateral(f, i);
     }
   };
-  // Every crease: the corners of its quadrilateral, as queue_creases_of gives them from either
-  // output face of the edge (a crease has one; the cosine is the same from both).
-  for (const auto& [f, i] : watch.creased()) {
-    const Delaunay::Face_handle g = f->neighbor(i);
-    corners.insert(corners.end(), {f->vertex(0), f->vertex(1), f->vertex(2), g->vertex(triangulation.mirror_index(f, i))});
-  }
+  // Every crease, seen from either of its faces: a crease has one output face, and the cosine is
+  // the same from both.
+  for (const auto& [f, i] : watch.creased()) queue_quadrilateral(f, i);
   // The faces around the point being moved, with their signed areas and output before the move
   // (a Delaunay vertex rarely has more than 16 faces; one with more stays).
   constexpr size_t kMostFaces = 16;
