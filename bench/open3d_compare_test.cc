@@ -83,6 +83,29 @@ TEST_F(Open3dCompareTest, OneFrameGivesAColouredMeshOnTheTrueSurface) {
   EXPECT_LT(q.color_error, 10.0);
 }
 
+// The tensor TSDF reuses one grid: each frame set must start from empty voxels (a reactivated
+// block kept the last frame's, which put frame 2's surface 50–90 mm off) and survive Open3D's
+// slot-0 assertion.
+TEST_F(Open3dCompareTest, VoxelBlockGridStartsEveryFrameSetEmpty) {
+  const fs::path out = dir_ / "o3d";
+  const Result r = run(kSamba.string() + " --rig " + (kSamba / "ground_truth" / "rig.json").string() +
+                       " --frames 0:3 --tsdf voxel-block-grid --no-poisson --json --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["tsdf"]["volume"], "VoxelBlockGrid");
+  EXPECT_GT(j["tsdf"]["median_active_blocks"].get<double>(), 0);
+  const Capture capture = Capture::open(kSamba);
+  for (int frame : {1, 2}) {
+    const TriangleMesh mesh = read_mesh(out / frame_file_name(frame, ".ply"));
+    ASSERT_TRUE(mesh.has_colors());
+    const FrameQuality q =
+        evaluate_frame(mesh, read_mesh(capture.ground_truth_mesh_path(frame)), *capture.ground_truth_rig(), *capture.rig().volume);
+    EXPECT_LT(q.accuracy_mean_mm, 3.0) << "frame " << frame;
+    EXPECT_GT(q.completeness, 0.9) << "frame " << frame;
+    EXPECT_LT(q.color_error, 10.0) << "frame " << frame;
+  }
+}
+
 TEST_F(Open3dCompareTest, PoissonMeshGoesToItsOwnFolder) {
   const fs::path out = dir_ / "o3d";
   const Result r = run(kSamba.string() + " --frames 3:4 --voxel 0.02 --threads 2 --out " + out.string());
@@ -100,6 +123,12 @@ TEST_F(Open3dCompareTest, BadInputIsOneLineNamingTheOptionOrFile) {
   EXPECT_NE(r.err.find("--voxel"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "a"));
+
+  r = run(kSamba.string() + " --tsdf uniform --out " + (dir_ / "d").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--tsdf"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "d"));
 
   r = run(kSamba.string() + " --poisson-frame 40 --out " + (dir_ / "b").string());
   EXPECT_EQ(r.exit_code, 2);
