@@ -105,8 +105,9 @@ def main(folder):
             "- *Tensor TSDF* (`--tsdf voxel-block-grid`): Open3D's `t::geometry::VoxelBlockGrid` on the CPU device (blocks "
             "of 16³ voxels, float TSDF, weight and colour; depth as uint16 millimetres, colour as uint8), the same voxel "
             "and truncation. One grid is made before the first frame set (making one zeroes its whole buffer: about "
-            "190 ms) and cleared for each, the blocks a frame set activates zeroed first (Open3D leaves a reactivated "
-            "block's old voxels); time = clearing + zeroing + integrate + extract (weight > 0, as the legacy volume). "
+            "190 ms) and cleared for each, the weights of the blocks a frame set activates zeroed first (Open3D leaves a "
+            "reactivated block's old voxels); time = clearing + zeroing + integrate + extract (weight > 0, as the legacy "
+            "volume). "
             "The ratio column is against the faster of the two TSDFs at 10 mm.",
             "- *Poisson* (frame 0 only): all cameras' foreground points merged, normals from 30 neighbours flipped towards "
             "the camera that saw them, `CreateFromPointCloudPoisson` depth 8, no density trimming; time = normals + Poisson.",
