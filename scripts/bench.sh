@@ -10,6 +10,7 @@ SAMBA=${SAMBA:-../shared/data/samba-4cam}
 FRAMES=${BENCH_FRAMES:-40}
 SOAK=${BENCH_SOAK:-1000}
 SCALE_FRAMES=${BENCH_SCALE_FRAMES:-10}
+PAIRED_ROUNDS=${BENCH_PAIRED_ROUNDS:-5}
 ZF=$BUILD_DIR/zipfusion
 mkdir -p "$OUT"
 [[ -f "$SAMBA/rig.json" ]] || { echo "bench.sh: $SAMBA/rig.json: not found (the samba-4cam capture of ../shared/data)" >&2; exit 2; }
@@ -65,6 +66,14 @@ if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
     "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" --no-poisson \
       --tsdf voxel-block-grid --out "$OUT/meshes/open3d_block_$voxel" --json > "$OUT/open3d_block_$voxel.json"
     "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_block_$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_open3d_block_$voxel.json"
+  done
+  # The machine's speed changes by up to a third from minute to minute, so the ratio is also
+  # measured in rounds that alternate the two, each round's ratio taken within it.
+  step "zipfusion and Open3D's tensor TSDF at 10 mm in $PAIRED_ROUNDS alternating rounds"
+  for round in $(seq 1 "$PAIRED_ROUNDS"); do
+    "$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 1 --json > "$OUT/paired_zipfusion_$round.json"
+    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel 0.01 --no-poisson \
+      --tsdf voxel-block-grid --out "$OUT/meshes/paired_open3d" --json > "$OUT/paired_open3d_$round.json"
   done
 fi
 

@@ -5,6 +5,7 @@ import datetime
 import json
 import os
 import platform
+import statistics
 import sys
 
 STAGES = ["foreground", "filter", "triangulate", "color", "overlap", "redundancy", "clipping", "assemble", "total"]
@@ -145,6 +146,32 @@ def main(folder):
     out += ["", "Target (issue 6): zipfusion ≥ 5× faster than Open3D TSDF at 10 mm (here the faster of its two volumes), with "
             "better accuracy and completeness. "
             "The paper reports Poisson reconstruction taking seconds per frame.", ""]
+
+    paired = []
+    for round_number in range(1, 100):
+        zipfusion, o3d = load(folder, f"paired_zipfusion_{round_number}.json"), load(folder, f"paired_open3d_{round_number}.json")
+        if not (zipfusion and o3d):
+            break
+        paired.append((zipfusion, o3d["tsdf"]["total_ms"]["median"]))
+    if paired:
+        labels = ["zipper+5x5 filter", "zipper", "zipper+filter", "zipper lod 1"]
+        out += ["### The same ratios in alternating rounds", "",
+                f"The machine's speed changes by up to a third from minute to minute, and the table above times each method "
+                f"once, minutes apart. Here `zipfusion bench --frames {samba['frames']} --repeat 1` and Open3D's tensor TSDF at "
+                f"10 mm (`zf_open3d_compare --tsdf voxel-block-grid`) alternate in {len(paired)} rounds; each ratio is taken "
+                "within its round (ms per frame set, medians over the frame sets).", "",
+                "| round | Open3D tensor TSDF 10 mm | " + " | ".join(f"{label} (× TSDF)" for label in labels) + " |",
+                "|---|---|" + "---|" * len(labels)]
+        ratios = {label: [] for label in labels}
+        for k, (zipfusion, tsdf_ms) in enumerate(paired, 1):
+            cells = []
+            for label in labels:
+                total = config(zipfusion, label)["ms"]["total"]["median"]
+                ratios[label].append(tsdf_ms / total)
+                cells.append(f"{total:.1f} ({tsdf_ms / total:.2f})")
+            out.append(f"| {k} | {tsdf_ms:.1f} | " + " | ".join(cells) + " |")
+        out.append("| median ratio | | " + " | ".join(f"{statistics.median(ratios[label]):.2f}" for label in labels) + " |")
+        out.append("")
 
     scale = load(folder, "scale_cameras_4.json")
     out += ["## Scaling", "", f"Synthetic rigs from `zipfusion synth` ({scale['frames'] if scale else '?'} frames, built-in human, "
