@@ -28,7 +28,7 @@ enum class Ownership {
 struct ZipperOptions {
   double redundancy_distance_m = 0.03;  // d_r (III-C): triangles closer than this to another camera's are redundant
   int coarse_levels = 2;                // L (III-C2): FRBR starts on depth maps downsampled by 2^L
-  double coarse_shrink = 0.7;           // β (III-C2): d_r at level l is β^l·d_r
+  double coarse_shrink = 0.85;          // β (III-C2): d_r at level l is β^l·d_r
   double clipping_distance_m = 0.008;   // d_c (III-D1): triangles this close to the other mesh are re-triangulated
   Ownership ownership = Ownership::kAuto;
   int hole_closing_px = 3;              // border: holes up to 2·this+1 pixels wide do not count as borders
