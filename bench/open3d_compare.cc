@@ -9,11 +9,11 @@
 // Per frame set: a fresh ScalableTSDFVolume (voxel, sdf_trunc = 4 voxels, colour RGB8) integrates
 // every camera's depth and colour with the camera's depth intrinsics and camera_from_world pose,
 // then ExtractTriangleMesh. With --tsdf voxel-block-grid, Open3D's tensor TSDF instead
-// (BlockGridTsdf below: one grid, cleared for every frame set), the faster of the two here. Input is exactly the depth zipfusion starts from: zipfusion's own
-// extract_foreground (0.4–4.5 m and the rig's capture volume, per pixel), as float metres. Colour
-// is resampled into the depth camera (colour registered to depth through color_from_depth, the
-// colour intrinsics and bilinear sampling, as zipfusion's lookup_colors does), since Open3D wants
-// colour pixel-aligned with depth.
+// (BlockGridTsdf below: one grid, cleared for every frame set), the faster of the two here.
+// Input is exactly the depth zipfusion starts from: zipfusion's own extract_foreground (0.4–4.5 m
+// and the rig's capture volume, per pixel), as float metres. Colour is resampled into the depth
+// camera (colour registered to depth through color_from_depth, the colour intrinsics and bilinear
+// sampling, as zipfusion's lookup_colors does), since Open3D wants colour pixel-aligned with depth.
 //
 // Times (steady clock, milliseconds): decode (PNG/JPEG, reported apart), prepare (foreground crop,
 // colour alignment and filling Open3D's images: our work, reported apart), integrate (volume
@@ -50,12 +50,12 @@
 
 #include <open3d/Open3DConfig.h>
 #include <open3d/camera/PinholeCameraIntrinsic.h>
+#include <open3d/core/EigenConverter.h>
+#include <open3d/core/hashmap/HashMap.h>
 #include <open3d/geometry/KDTreeSearchParam.h>
 #include <open3d/geometry/PointCloud.h>
 #include <open3d/geometry/RGBDImage.h>
 #include <open3d/geometry/TriangleMesh.h>
-#include <open3d/core/EigenConverter.h>
-#include <open3d/core/hashmap/HashMap.h>
 #include <open3d/pipelines/integration/ScalableTSDFVolume.h>
 #include <open3d/t/geometry/Image.h>
 #include <open3d/t/geometry/TriangleMesh.h>
@@ -215,7 +215,7 @@ class BlockGridTsdf {
   // Marching cubes over every voxel seen at least once (the legacy volume's rule: weight > 0).
   o3d::t::geometry::TriangleMesh extract() { return grid_.ExtractTriangleMesh(0.5f); }
 
-  int64_t active_blocks() { return grid_.GetHashMap().Size(); }
+  int64_t active_blocks() { return grid_.GetHashMap().Size() - 1; }  // without the far block
 
   static o3d::t::geometry::Image depth_mm(const o3d::geometry::Image& depth_m) {
     return o3d::t::geometry::Image::FromLegacy(depth_m).To(o3d::core::UInt16, false, 1000.0);
