@@ -453,7 +453,8 @@ void run(const Args& args) {
   const char* wait_policy = std::getenv("OMP_WAIT_POLICY");
   j["omp_wait_policy"] = wait_policy ? wait_policy : "default";
   j["open3d_version"] = OPEN3D_VERSION;
-  j["tsdf"] = {{"volume", block_grid ? "VoxelBlockGrid" : "ScalableTSDFVolume"},
+  const char* volume_name = block_grid ? "VoxelBlockGrid" : "ScalableTSDFVolume";
+  j["tsdf"] = {{"volume", volume_name},
                {"voxel_m", args.voxel_m},
                {"sdf_trunc_m", sdf_trunc_m},
                {"color", "RGB8"},
@@ -491,8 +492,8 @@ void run(const Args& args) {
     return;
   }
   std::printf("Open3D %s %s, voxel %.1f mm, sdf_trunc %.1f mm, %d threads (OMP_WAIT_POLICY %s), frames %d:%d of %s\n",
-              OPEN3D_VERSION, block_grid ? "VoxelBlockGrid" : "ScalableTSDFVolume", args.voxel_m * 1000, sdf_trunc_m * 1000, threads, wait_policy ? wait_policy : "default", range.begin, range.end,
-              args.capture.c_str());
+              OPEN3D_VERSION, volume_name, args.voxel_m * 1000, sdf_trunc_m * 1000, threads, wait_policy ? wait_policy : "default", range.begin,
+              range.end, args.capture.c_str());
   std::printf("%-10s %10s %10s\n", "ms", "median", "p95");
   for (const auto& [name, field] : fields) {
     const nlohmann::ordered_json& stage = stages[std::string(name) + "_ms"];

@@ -52,24 +52,25 @@ done
 
 if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
   step "Open3D TSDF (two volumes; 10 mm, 5 mm) and Poisson, same frames"
-  for voxel in 0.01 0.005; do
-    poisson=--no-poisson
-    [[ "$voxel" == 0.01 ]] && poisson="--poisson-frame 0"
-    # shellcheck disable=SC2086
-    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" $poisson \
-      --out "$OUT/meshes/open3d_$voxel" --json > "$OUT/open3d_$voxel.json"
-    "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_open3d_$voxel.json"
+  # The legacy volume's results are open3d_VOXEL, with Poisson at 10 mm; the tensor one's (the
+  # faster of the two here) open3d_block_VOXEL.
+  for tsdf in scalable voxel-block-grid; do
+    prefix=open3d_
+    [[ "$tsdf" == voxel-block-grid ]] && prefix=open3d_block_
+    for voxel in 0.01 0.005; do
+      poisson=--no-poisson
+      [[ "$tsdf" == scalable && "$voxel" == 0.01 ]] && poisson="--poisson-frame 0"
+      # shellcheck disable=SC2086
+      "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" $poisson \
+        --tsdf "$tsdf" --out "$OUT/meshes/$prefix$voxel" --json > "$OUT/$prefix$voxel.json"
+      "$ZF" eval "$SAMBA" "$OUT/meshes/$prefix$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_$prefix$voxel.json"
+    done
   done
   "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_0.01/poisson" --frames 0 --json > "$OUT/eval_poisson.json"
-  # Open3D's tensor TSDF, the faster of its two here.
-  for voxel in 0.01 0.005; do
-    "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel "$voxel" --no-poisson \
-      --tsdf voxel-block-grid --out "$OUT/meshes/open3d_block_$voxel" --json > "$OUT/open3d_block_$voxel.json"
-    "$ZF" eval "$SAMBA" "$OUT/meshes/open3d_block_$voxel" --frames "0:$FRAMES" --json > "$OUT/eval_open3d_block_$voxel.json"
-  done
   # The machine's speed changes by up to a third from minute to minute, so the ratio is also
   # measured in rounds that alternate the two, each round's ratio taken within it.
   step "zipfusion and Open3D's tensor TSDF at 10 mm in $PAIRED_ROUNDS alternating rounds"
+  rm -f "$OUT"/paired_zipfusion_*.json "$OUT"/paired_open3d_*.json  # the report reads every round it finds
   for round in $(seq 1 "$PAIRED_ROUNDS"); do
     "$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 1 --json > "$OUT/paired_zipfusion_$round.json"
     "$BUILD_DIR/zf_open3d_compare" "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "0:$FRAMES" --voxel 0.01 --no-poisson \

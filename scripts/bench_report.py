@@ -108,8 +108,7 @@ def main(folder):
             "and truncation. One grid is made before the first frame set (making one zeroes its whole buffer: about "
             "190 ms) and cleared for each, the weights of the blocks a frame set activates zeroed first (Open3D leaves a "
             "reactivated block's old voxels); time = clearing + zeroing + integrate + extract (weight > 0, as the legacy "
-            "volume). "
-            "The ratio column is against the faster of the two TSDFs at 10 mm.",
+            "volume). The ratio column is against the faster of the two TSDFs at 10 mm.",
             "- *Poisson* (frame 0 only): all cameras' foreground points merged, normals from 30 neighbours flipped towards "
             "the camera that saw them, `CreateFromPointCloudPoisson` depth 8, no density trimming; time = normals + Poisson.",
             "- *Threads*: both use all cores; Open3D's OpenMP runs with `OMP_WAIT_POLICY=PASSIVE` (spin-waiting made it "
