@@ -11,6 +11,7 @@ FRAMES=${BENCH_FRAMES:-40}
 SOAK=${BENCH_SOAK:-1000}
 SCALE_FRAMES=${BENCH_SCALE_FRAMES:-10}
 PAIRED_ROUNDS=${BENCH_PAIRED_ROUNDS:-5}
+SCALE_ROUNDS=${BENCH_SCALE_ROUNDS:-5}
 ZF=$BUILD_DIR/zipfusion
 mkdir -p "$OUT"
 [[ -f "$SAMBA/rig.json" ]] || { echo "bench.sh: $SAMBA/rig.json: not found (the samba-4cam capture of ../shared/data)" >&2; exit 2; }
@@ -78,16 +79,23 @@ if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
   done
 fi
 
-step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes"
+# The rigs are benched in rounds, each round every rig once, so that all of them meet the same
+# phases of the machine's speed and their ratios can be taken within a round.
+step "scaling: synthetic rigs of 2, 4, 6, 8 cameras and three depth sizes, $SCALE_ROUNDS rounds"
+rigs=()
 for cameras in 2 4 6 8; do
-  capture="$OUT/synth/cameras_$cameras"
-  synth_once "$capture" --cameras "$cameras" --frames "$SCALE_FRAMES"
-  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_cameras_$cameras.json"
+  synth_once "$OUT/synth/cameras_$cameras" --cameras "$cameras" --frames "$SCALE_FRAMES"
+  rigs+=("cameras_$cameras")
 done
 for size in 320x240 640x480 1280x960; do
-  capture="$OUT/synth/size_$size"
-  synth_once "$capture" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size"
-  "$ZF" bench "$capture" --frames "$SCALE_FRAMES" --repeat 2 --json > "$OUT/scale_size_$size.json"
+  synth_once "$OUT/synth/size_$size" --cameras 4 --frames "$SCALE_FRAMES" --resolution "$size"
+  rigs+=("size_$size")
+done
+rm -f "$OUT"/scale_*.json  # the report reads every round it finds
+for round in $(seq 1 "$SCALE_ROUNDS"); do
+  for rig in "${rigs[@]}"; do
+    "$ZF" bench "$OUT/synth/$rig" --frames "$SCALE_FRAMES" --repeat 1 --json > "$OUT/scale_${rig}_$round.json"
+  done
 done
 
 step "live stream: Draco frame size, 20 viewers (one stalled), latency to a client and to a browser"

@@ -48,6 +48,70 @@ def stage_table(report, names):
     return lines
 
 
+def scale_rounds(folder, rig):
+    """A rig's `zipfusion bench` results, one per round (scale_RIG_1.json, scale_RIG_2.json, ...)."""
+    rounds = []
+    for round_number in range(1, 100):
+        r = load(folder, f"scale_{rig}_{round_number}.json")
+        if r is None:
+            break
+        rounds.append(r)
+    return rounds
+
+
+def scaling_section(folder):
+    """The scaling table: each rig's totals as the median over the rounds, and the growth against the
+    4-camera 640×480 rig taken within each round."""
+    rigs = [(f"{n} cameras, 640x480", f"cameras_{n}", n, 640 * 480) for n in (2, 4, 6, 8)]
+    # The 640×480 one is the 4-camera rig again, from its own capture: its ratio shows the rounds' noise.
+    rigs += [(f"4 cameras, {size}" + (" (the same rig again)" if size == "640x480" else ""), f"size_{size}", 4,
+              int(size.split("x")[0]) * int(size.split("x")[1])) for size in ("320x240", "640x480", "1280x960")]
+    results = {rig: scale_rounds(folder, rig) for _, rig, _, _ in rigs}
+    reference = results["cameras_4"]
+    if not reference:
+        return []
+    rounds = min(len(r) for r in results.values() if r)
+    frames = reference[0]["frames"]
+    total = lambda r, name: config(r, name)["ms"]["total"]["median"]
+    median_total = lambda rig, name: statistics.median(total(r, name) for r in results[rig][:rounds])
+    out = ["## Scaling", "", f"Synthetic rigs from `zipfusion synth` ({frames} frames, built-in human, Kinect noise, ring of 2.5 m "
+           f"radius), `zipfusion bench --repeat 1` in {rounds} rounds, each round every rig once: total ms, the median over the "
+           "frame sets, then over the rounds.", "",
+           "What the zipper works on is the cameras' triangles (all of them are the separate meshes') and the overlapping "
+           "pairs it finds: more cameras in one ring overlap more (each surface seen twice or more), and a finer depth "
+           "image gives more triangles for the same surface. The ns column divides the one-thread total (every stage, "
+           "foreground to assembly) by the cameras' triangles: where it stays flat, the time grows linearly with the work.", "",
+           "| rig | zipper | zipper+filter | separate | zipper, 1 thread | CPU time stolen, % (zipper / 1 thread, most of any round) "
+           "| overlapping pairs | cameras' triangles | zipper, 1 thread, ns per camera triangle |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for label, rig, _, _ in rigs:
+        if not results[rig]:
+            continue
+        first = results[rig][0]
+        camera_triangles = config(first, "separate")["triangles"]
+        one_thread = median_total(rig, "zipper 1 thread")
+        most_stolen = lambda name: max((config(r, name).get("cpu_stolen_share") or 0) for r in results[rig][:rounds])
+        pairs = config(first, "zipper").get("pairs")
+        out.append(f"| {label} | {median_total(rig, 'zipper'):.1f} | {median_total(rig, 'zipper+filter'):.1f} | "
+                   f"{median_total(rig, 'separate'):.1f} | {one_thread:.1f} | {100 * most_stolen('zipper'):.1f} / "
+                   f"{100 * most_stolen('zipper 1 thread'):.1f} | {'?' if pairs is None else f'{pairs:.0f}'} | {camera_triangles:.0f} | "
+                   f"{1e6 * one_thread / camera_triangles:.0f} |")
+    # Growth: each rig's time over the 4-camera 640×480 rig's in the same round (median over the
+    # rounds), beside the growth of the cameras or pixels and of the cameras' triangles.
+    out += ["", "Growth against the 4-camera 640×480 rig, each ratio taken within a round (median over the rounds). Time that grows "
+            "no faster than linearly has a time ratio no larger than the ratio of cameras × pixels.", "",
+            "| rig | cameras × pixels | cameras' triangles | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|---|---|"]
+    reference_triangles = config(reference[0], "separate")["triangles"]
+    for label, rig, cameras, pixels in rigs:
+        if rig == "cameras_4" or not results[rig]:
+            continue
+        ratio = lambda name: statistics.median(total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds]))
+        out.append(f"| {label} | {cameras * pixels / (4 * 640 * 480):.2f} | {config(results[rig][0], 'separate')['triangles'] / reference_triangles:.2f} | "
+                   f"{ratio('zipper'):.2f} | {ratio('zipper 1 thread'):.2f} | {ratio('zipper+filter'):.2f} |")
+    out.append("")
+    return out
+
+
 def main(folder):
     samba = load(folder, "samba.json")
     if samba is None:
@@ -172,37 +236,7 @@ def main(folder):
         out.append("| median ratio | | " + " | ".join(f"{statistics.median(ratios[label]):.2f}" for label in labels) + " |")
         out.append("")
 
-    scale = load(folder, "scale_cameras_4.json")
-    out += ["## Scaling", "", f"Synthetic rigs from `zipfusion synth` ({scale['frames'] if scale else '?'} frames, built-in human, "
-            "Kinect noise, ring of 2.5 m radius), `zipfusion bench --repeat 2`: total ms, median.", "",
-            "The one-thread column is the least disturbed by other guests of a shared machine (its CPU time stolen is "
-            "the CPU-time-stolen column's second figure).", "",
-            "What the zipper works on is the cameras' triangles (all of them are the separate meshes') and the overlapping "
-            "pairs it finds: more cameras in one ring overlap more (each surface seen twice or more), and a finer depth "
-            "image gives more triangles for the same surface. The last column divides the one-thread total (every stage, "
-            "foreground to assembly) by the cameras' triangles: where it stays flat, the time grows linearly with the work.", "",
-            "| rig | zipper | zipper+filter | separate | zipper, 1 thread | CPU time stolen, % (zipper / 1 thread) "
-            "| overlapping pairs | cameras' triangles | zipper, 1 thread, ns per camera triangle |",
-            "|---|---|---|---|---|---|---|---|---|"]
-
-    def scaling_row(label, r):
-        total = lambda name: f"{config(r, name)['ms']['total']['median']:.1f}"
-        camera_triangles = config(r, "separate")["triangles"]
-        one_thread_ns = 1e6 * config(r, "zipper 1 thread")["ms"]["total"]["median"] / camera_triangles if camera_triangles else float("nan")
-        pairs = config(r, "zipper").get("pairs")
-        return (f"| {label} | {total('zipper')} | {total('zipper+filter')} | {total('separate')} | {total('zipper 1 thread')} | "
-                f"{stolen(config(r, 'zipper'))} / {stolen(config(r, 'zipper 1 thread'))} | {'?' if pairs is None else f'{pairs:.0f}'} | "
-                f"{camera_triangles:.0f} | {one_thread_ns:.0f} |")
-
-    for cameras in [2, 4, 6, 8]:
-        r = load(folder, f"scale_cameras_{cameras}.json")
-        if r:
-            out.append(scaling_row(f"{cameras} cameras, 640x480", r))
-    for size in ["320x240", "640x480", "1280x960"]:
-        r = load(folder, f"scale_size_{size}.json")
-        if r:
-            out.append(scaling_row(f"4 cameras, {size}", r))
-    out.append("")
+    out += scaling_section(folder)
 
     if samba.get("soak"):
         s = samba["soak"]
