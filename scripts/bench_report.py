@@ -108,6 +108,22 @@ def scaling_section(folder):
         ratio = lambda name: statistics.median(total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds]))
         out.append(f"| {label} | {cameras * pixels / (4 * 640 * 480):.2f} | {config(results[rig][0], 'separate')['triangles'] / reference_triangles:.2f} | "
                    f"{ratio('zipper'):.2f} | {ratio('zipper 1 thread'):.2f} | {ratio('zipper+filter'):.2f} |")
+    # Linear growth with an intercept (time = fixed + per camera · cameras) has a ratio above the
+    # cameras' where the fixed part is negative, as the zipper's is: the redundant triangles it
+    # removes are the cameras' triangles less the surface's. The cost of each camera or pixel added
+    # stays the same under linear growth, and grows where the growth is faster.
+    steps = [("2 → 4 cameras, per camera", "cameras_2", "cameras_4", 2), ("4 → 6 cameras, per camera", "cameras_4", "cameras_6", 2),
+             ("6 → 8 cameras, per camera", "cameras_6", "cameras_8", 2),
+             ("320x240 → 640x480, per million pixels of each camera", "size_320x240", "cameras_4", (640 * 480 - 320 * 240) / 1e6),
+             ("640x480 → 1280x960, per million pixels of each camera", "cameras_4", "size_1280x960", (1280 * 960 - 640 * 480) / 1e6)]
+    out += ["", "The same growth as the time each camera or pixel adds, within each round (median over the rounds, ms): equal figures "
+            "down a column mean linear growth.", "", "| step | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|"]
+    for label, before, after, added in steps:
+        if not (results[before] and results[after]):
+            continue
+        step = lambda name: statistics.median((total(b, name) - total(a, name)) / added
+                                              for a, b in zip(results[before][:rounds], results[after][:rounds]))
+        out.append(f"| {label} | {step('zipper'):.1f} | {step('zipper 1 thread'):.1f} | {step('zipper+filter'):.1f} |")
     out.append("")
     return out
 
