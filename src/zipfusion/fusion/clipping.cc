@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <span>
@@ -42,12 +43,15 @@ using PlainDelaunay = CGAL::Delaunay_triangulation_2<Kernel, TriangulationData>;
 
 // The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
 // meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
-// change until both are), and each seam reads both lists.
+// change until both are), and each seam reads both lists. Every triangle of `s.boundary` that
+// still exists is a boundary triangle (it was one when collected, or it is next to a taken one,
+// and the mesh only loses triangles): only existence is tested.
 void select_seeds(const MeshView& view, const OverlapMask& mask, SeamScratch& s) {
   const DepthMesh& mesh = *view.mesh;
   s.seeds.clear();
   for (int id : s.boundary) {
-    if (mask.covers(cell_of(id), mesh.width, view.level) && is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) {
+    if ((mesh.triangles[cell_of(id)] & bit_of(id)) && mask.covers(cell_of(id), mesh.width, view.level)) {
+      assert(is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id)));
       s.seeds.push_back(id);
     }
   }

@@ -29,7 +29,11 @@ void enqueue(FrbrScratch& s, int id) {
 // pass they are independent and overlap. The tests read only the bit matrices as the sweep
 // found them (its removals are cleared after it), so the passes give the removals a single loop
 // gave, in the same order.
-int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_only, const OverlapMask& mask, FrbrScratch& s) {
+// Every triangle of a worklist that still exists is a boundary triangle, but in a whole first
+// sweep (`whole_sweep`): the first worklist holds boundary triangles (start_worklist) and each
+// later one neighbours of removed triangles, and a mesh only loses triangles, so none stops being
+// boundary. Testing it again cost four reads a test.
+int sweep(const MeshView& a, const MeshView& b, float distance, [[maybe_unused]] bool whole_sweep, const OverlapMask& mask, FrbrScratch& s) {
   DepthMesh& mesh = *a.mesh;
   const Rigid3f b_from_a_camera = b_from_a(a, b);
   s.removals.clear();
@@ -46,7 +50,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, bool boundary_on
       if (!(mesh.triangles[cell] & bit)) continue;
       const int v = cell / mesh.width, u = cell - v * mesh.width;
       if (!mask.covers_at(u, v, a.level)) continue;
-      if (boundary_only && !is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit)) continue;
+      assert(whole_sweep || is_boundary_triangle(mesh.triangles.data(), cell, mesh.width, bit));
       block.add(id, u, v);
     }
     project_triangle_centres(a, b, b_from_a_camera, block);
@@ -80,10 +84,12 @@ void start_worklist(const DepthMesh& mesh, bool all_triangles, FrbrScratch& s) {
     return;
   }
   // The frontier holds ids more than once; the worklist each once, and it stays marked as queued
-  // (the first sweep clears it).
+  // (the first sweep clears it). Each frontier triangle was boundary when it was added (the
+  // level's boundary, or next to a removal) and stays so while it exists: only existence is tested.
   for (int id : s.frontier) {
     if (s.queued.test(id)) continue;
-    if (is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) {
+    if (mesh.triangles[cell_of(id)] & bit_of(id)) {
+      assert(is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id)));
       s.queued.test_and_set(id);
       s.worklist.push_back(id);
     }
@@ -752,11 +758,11 @@ FrbrResult remove_redundant_boundaries(const MeshView& a, const MeshView& b, flo
   FrbrResult result;
   start_worklist(*a.mesh, whole_first_sweep, scratch_a);
   start_worklist(*b.mesh, whole_first_sweep, scratch_b);
-  bool boundary_only = !whole_first_sweep;
+  bool whole_sweep = whole_first_sweep;
   while (true) {
-    const int removed_a = sweep(a, b, redundancy_distance, boundary_only, mask_a, scratch_a);
-    const int removed_b = sweep(b, a, redundancy_distance, boundary_only, mask_b, scratch_b);
-    boundary_only = true;
+    const int removed_a = sweep(a, b, redundancy_distance, whole_sweep, mask_a, scratch_a);
+    const int removed_b = sweep(b, a, redundancy_distance, whole_sweep, mask_b, scratch_b);
+    whole_sweep = false;
     ++result.iterations;
     result.removed_a += removed_a;
     result.removed_b += removed_b;
