@@ -14,9 +14,12 @@ namespace zipfusion {
 namespace {
 
 
-// Queues triangle `id` for the next worklist once per pass.
+// Queues triangle `id` for the next worklist once per pass, and adds it to the frontier, the
+// camera's later pairs' start: a triangle already queued in this pass is in both.
 void enqueue(FrbrScratch& s, int id) {
-  if (!s.queued.test_and_set(id)) s.next.push_back(id);
+  if (s.queued.test_and_set(id)) return;
+  s.next.push_back(id);
+  s.frontier.push_back(id);  // boundary now
 }
 
 
@@ -66,10 +69,7 @@ int sweep(const MeshView& a, const MeshView& b, float distance, [[maybe_unused]]
     int neighbours[3];
     const int n = triangle_neighbours(id, mesh.width, neighbours);
     for (int k = 0; k < n; ++k) {
-      if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) {
-        enqueue(s, neighbours[k]);
-        s.frontier.push_back(neighbours[k]);  // boundary now, also for the camera's later pairs
-      }
+      if (mesh.triangles[cell_of(neighbours[k])] & bit_of(neighbours[k])) enqueue(s, neighbours[k]);
     }
   }
   s.worklist.swap(s.next);
