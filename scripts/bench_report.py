@@ -299,8 +299,17 @@ def main(folder):
                     out.append(f"| {b['run_name']} | {b['real_time'] * to_ms:.3f} |")
         out.append("")
 
-    out += ["## Where the time goes", "", "See [profile.md](profile.md): a `perf` profile of the stages, taken separately from "
-            "this run, and what reaching the targets would take.", ""]
+    # Each stage's share of the sum of the stages' medians (the total's median is not their sum).
+    names = ["zipper", "zipper+5x5 filter"]
+    out += ["## Where the time goes", "",
+            "Each stage's share of the per-stage table's medians on samba-4cam (the sum of the stages' medians = 100 %):", "",
+            "| stage | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    sums = {n: sum(config(samba, n)["ms"][stage]["median"] for stage in STAGES if stage != "total") for n in names}
+    for stage in STAGES[:-1]:
+        out.append(f"| {stage} | " + " | ".join(f"{100 * config(samba, n)['ms'][stage]['median'] / sums[n]:.0f} %" for n in names) + " |")
+    out += ["", "Inside the stages, see [profile.md](profile.md): `perf` and callgrind profiles taken apart from this run (per "
+            "function and per source line), instruction counts per rig, and every idea measured towards the targets, "
+            "kept or not.", ""]
     print("\n".join(out))
 
 
