@@ -32,7 +32,7 @@ void enqueue(FrbrScratch& s, int id) {
 // pass they are independent and overlap. The tests read only the bit matrices as the sweep
 // found them (its removals are cleared after it), so the passes give the removals a single loop
 // gave, in the same order.
-// Every triangle of a worklist that still exists is a boundary triangle, but in a whole first
+// Every triangle of a worklist that still exists is a boundary triangle, except in a whole first
 // sweep (`whole_sweep`): the first worklist holds boundary triangles (start_worklist) and each
 // later one neighbours of removed triangles, and a mesh only loses triangles, so none stops being
 // boundary. Testing it again cost four reads a test.
