@@ -433,7 +433,8 @@ struct FrbrResult {
 
 //! Runs FRBR between two views until neither mesh changes; clears redundant triangles' bits.
 //! Without `whole_first_sweep` the sweeps start from the scratch spaces' `frontier`, which must
-//! hold (at least) the meshes' boundary triangles. With it the first sweep tests every triangle, not only the boundary ones (used
+//! hold (at least) the meshes' boundary triangles and no other triangle that exists (only
+//! existence is tested: a boundary triangle stays one while the mesh loses triangles). With it the first sweep tests every triangle, not only the boundary ones (used
 //! on the coarsest level: it also removes doubled patches that noise or holes cut off from the
 //! mesh's boundary, which peeling never reaches).
 //! Not thread-safe for views that share a mesh; distinct pairs may run in parallel.

@@ -257,6 +257,41 @@ TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
   EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.05);
 }
 
+// FRBR's frontier and the seams' candidate lists test their triangles for existence only
+// (start_worklist, select_seeds): whatever they hold that still exists must be a boundary
+// triangle, as it was when added, since a mesh only loses triangles. Checked after a whole
+// zippering (the lists as its last level and its last seam left them) on the cylinder's four
+// cameras, whose pairs remove triangles and take seams.
+TEST(Zipper, BoundaryListsHoldOnlyBoundaryTriangles) {
+  const TriangleMesh cylinder = grid_mesh(180, 60, [](float s, float t) {
+    const float a = 2 * std::numbers::pi_v<float> * s;
+    return Eigen::Vector3f(0.15f * std::cos(a), 0.15f * std::sin(a), 0.4f + 1.2f * t);
+  });
+  Scene scene;
+  for (int k = 0; k < 4; ++k) {
+    const double a = std::numbers::pi / 4 + k * std::numbers::pi / 2;
+    scene.add_camera(look_at({2.5 * std::cos(a), 2.5 * std::sin(a), 1.3}, {0, 0, 1.0}), cylinder);
+  }
+  std::vector<ZipperCamera> cameras;
+  for (size_t i = 0; i < scene.meshes.size(); ++i) cameras.push_back({&scene.meshes[i], &scene.colors[i], &scene.models[i]});
+  ZipperScratch scratch;
+  const ZipperResult result = zipper_meshes(cameras, {}, scratch);
+  ASSERT_GT(result.stats.redundant_removed, 1000);
+  ASSERT_GT(result.stats.seam_taken, 100);
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    const DepthMesh& mesh = scene.meshes[c];
+    int existing = 0;
+    for (const std::vector<int>* list : {&scratch.cameras[c].frbr.frontier, &scratch.cameras[c].seam.boundary}) {
+      for (int id : *list) {
+        if (!(mesh.triangles[cell_of(id)] & bit_of(id))) continue;
+        ++existing;
+        ASSERT_TRUE(is_boundary_triangle(mesh.triangles.data(), cell_of(id), mesh.width, bit_of(id))) << "camera " << c << ", triangle " << id;
+      }
+    }
+    EXPECT_GT(existing, 100) << "camera " << c;
+  }
+}
+
 TEST(Redundancy, BoundaryTrianglesAreThoseTheElementTestFinds) {
   // A random bit matrix (none in the last row and column) with a depth box inside the image and
   // one touching its corner: the row kernel and the element function must agree on every cell.
