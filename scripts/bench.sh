@@ -93,7 +93,13 @@ for size in 320x240 640x480 1280x960; do
 done
 rm -f "$OUT"/scale_*.json  # the report reads every round it finds
 for round in $(seq 1 "$SCALE_ROUNDS"); do
-  for rig in "${rigs[@]}"; do
+  # Every other round in reverse, so that no rig always runs first or last in a round.
+  order=("${rigs[@]}")
+  if (( round % 2 == 0 )); then
+    order=()
+    for (( k = ${#rigs[@]} - 1; k >= 0; k-- )); do order+=("${rigs[k]}"); done
+  fi
+  for rig in "${order[@]}"; do
     "$ZF" bench "$OUT/synth/$rig" --frames "$SCALE_FRAMES" --repeat 1 --json > "$OUT/scale_${rig}_$round.json"
   done
 done

@@ -90,24 +90,31 @@ def scaling_section(folder):
         first = results[rig][0]
         camera_triangles = config(first, "separate")["triangles"]
         one_thread = median_total(rig, "zipper 1 thread")
-        most_stolen = lambda name: max((config(r, name).get("cpu_stolen_share") or 0) for r in results[rig][:rounds])
+        def most_stolen(name):
+            shares = [config(r, name).get("cpu_stolen_share") for r in results[rig][:rounds]]
+            shares = [s for s in shares if s is not None]
+            return f"{100 * max(shares):.1f}" if shares else "–"
         pairs = config(first, "zipper").get("pairs")
+        per_triangle = f"{1e6 * one_thread / camera_triangles:.0f}" if camera_triangles else "–"
         out.append(f"| {label} | {median_total(rig, 'zipper'):.1f} | {median_total(rig, 'zipper+filter'):.1f} | "
-                   f"{median_total(rig, 'separate'):.1f} | {one_thread:.1f} | {100 * most_stolen('zipper'):.1f} / "
-                   f"{100 * most_stolen('zipper 1 thread'):.1f} | {'?' if pairs is None else f'{pairs:.0f}'} | {camera_triangles:.0f} | "
-                   f"{1e6 * one_thread / camera_triangles:.0f} |")
+                   f"{median_total(rig, 'separate'):.1f} | {one_thread:.1f} | {most_stolen('zipper')} / "
+                   f"{most_stolen('zipper 1 thread')} | {'?' if pairs is None else f'{pairs:.0f}'} | {camera_triangles:.0f} | "
+                   f"{per_triangle} |")
     # Growth: each rig's time over the 4-camera 640×480 rig's in the same round (median over the
     # rounds), beside the growth of the cameras or pixels and of the cameras' triangles.
-    out += ["", "Growth against the 4-camera 640×480 rig, each ratio taken within a round (median over the rounds). Time that grows "
-            "no faster than linearly has a time ratio no larger than the ratio of cameras × pixels.", "",
+    out += ["", "Growth against the 4-camera 640×480 rig, each ratio taken within a round: the median over the rounds, and in "
+            "brackets the lowest and highest round. Time proportional to cameras × pixels has their ratio; time linear in them "
+            "with a fixed part does not (the table after this one tests that).", "",
             "| rig | cameras × pixels | cameras' triangles | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|---|---|"]
     reference_triangles = config(reference[0], "separate")["triangles"]
     for label, rig, cameras, pixels in rigs:
         if rig == "cameras_4" or not results[rig]:
             continue
-        ratio = lambda name: statistics.median(total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds]))
+        def ratio(name):
+            ratios = [total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds])]
+            return f"{statistics.median(ratios):.2f} ({min(ratios):.2f}–{max(ratios):.2f})"
         out.append(f"| {label} | {cameras * pixels / (4 * 640 * 480):.2f} | {config(results[rig][0], 'separate')['triangles'] / reference_triangles:.2f} | "
-                   f"{ratio('zipper'):.2f} | {ratio('zipper 1 thread'):.2f} | {ratio('zipper+filter'):.2f} |")
+                   f"{ratio('zipper')} | {ratio('zipper 1 thread')} | {ratio('zipper+filter')} |")
     # Linear growth with an intercept (time = fixed + per camera · cameras) has a ratio above the
     # cameras' where the fixed part is negative, as the zipper's is: the redundant triangles it
     # removes are the cameras' triangles less the surface's. The cost of each camera or pixel added
@@ -116,14 +123,16 @@ def scaling_section(folder):
              ("6 → 8 cameras, per camera", "cameras_6", "cameras_8", 2),
              ("320x240 → 640x480, per million pixels of each camera", "size_320x240", "cameras_4", (640 * 480 - 320 * 240) / 1e6),
              ("640x480 → 1280x960, per million pixels of each camera", "cameras_4", "size_1280x960", (1280 * 960 - 640 * 480) / 1e6)]
-    out += ["", "The same growth as the time each camera or pixel adds, within each round (median over the rounds, ms): equal figures "
-            "down a column mean linear growth.", "", "| step | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|"]
+    out += ["", "The same growth as the time each camera or pixel adds, within each round (ms: the median over the rounds, and in "
+            "brackets the lowest and highest round): equal figures down a column mean linear growth.", "",
+            "| step | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|"]
     for label, before, after, added in steps:
         if not (results[before] and results[after]):
             continue
-        step = lambda name: statistics.median((total(b, name) - total(a, name)) / added
-                                              for a, b in zip(results[before][:rounds], results[after][:rounds]))
-        out.append(f"| {label} | {step('zipper'):.1f} | {step('zipper 1 thread'):.1f} | {step('zipper+filter'):.1f} |")
+        def step(name):
+            costs = [(total(b, name) - total(a, name)) / added for a, b in zip(results[before][:rounds], results[after][:rounds])]
+            return f"{statistics.median(costs):.1f} ({min(costs):.1f}–{max(costs):.1f})"
+        out.append(f"| {label} | {step('zipper')} | {step('zipper 1 thread')} | {step('zipper+filter')} |")
     out.append("")
     return out
 
@@ -302,7 +311,8 @@ def main(folder):
     # Each stage's share of the sum of the stages' medians (the total's median is not their sum).
     names = ["zipper", "zipper+5x5 filter"]
     out += ["## Where the time goes", "",
-            "Each stage's share of the per-stage table's medians on samba-4cam (the sum of the stages' medians = 100 %):", "",
+            "Each stage's share of the sum of the stages' medians in the per-stage table on samba-4cam (rounded, so a column "
+            "may not add to exactly 100 %):", "",
             "| stage | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
     sums = {n: sum(config(samba, n)["ms"][stage]["median"] for stage in STAGES if stage != "total") for n in names}
     for stage in STAGES[:-1]:
