@@ -233,17 +233,27 @@ TEST(Zipper, VertexColoursAreSampledWhereTheirCameraSeesThem) {
   EXPECT_GT(sampled, 1000);
 }
 
-TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
-  // A cylinder of radius 0.15 m, 1.2 m high (a torso), four cameras around it.
-  const TriangleMesh cylinder = grid_mesh(180, 60, [](float s, float t) {
+// A cylinder of radius 0.15 m, 1.2 m high (a torso).
+TriangleMesh torso_cylinder() {
+  return grid_mesh(180, 60, [](float s, float t) {
     const float a = 2 * std::numbers::pi_v<float> * s;
     return Eigen::Vector3f(0.15f * std::cos(a), 0.15f * std::sin(a), 0.4f + 1.2f * t);
   });
+}
+
+// `surface` seen by four cameras on a square around it, 2.5 m away.
+Scene four_cameras_around(const TriangleMesh& surface) {
   Scene scene;
   for (int k = 0; k < 4; ++k) {
     const double a = std::numbers::pi / 4 + k * std::numbers::pi / 2;
-    scene.add_camera(look_at({2.5 * std::cos(a), 2.5 * std::sin(a), 1.3}, {0, 0, 1.0}), cylinder);
+    scene.add_camera(look_at({2.5 * std::cos(a), 2.5 * std::sin(a), 1.3}, {0, 0, 1.0}), surface);
   }
+  return scene;
+}
+
+TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
+  const TriangleMesh cylinder = torso_cylinder();
+  Scene scene = four_cameras_around(cylinder);
   const ZipperResult result = scene.zipper();
   const TriangleMesh& mesh = result.mesh;
   EXPECT_EQ(components(mesh, 50), 1);
@@ -263,15 +273,7 @@ TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
 // zippering (the lists as its last level and its last seam left them) on the cylinder's four
 // cameras, whose pairs remove triangles and take seams.
 TEST(Zipper, BoundaryListsHoldOnlyBoundaryTriangles) {
-  const TriangleMesh cylinder = grid_mesh(180, 60, [](float s, float t) {
-    const float a = 2 * std::numbers::pi_v<float> * s;
-    return Eigen::Vector3f(0.15f * std::cos(a), 0.15f * std::sin(a), 0.4f + 1.2f * t);
-  });
-  Scene scene;
-  for (int k = 0; k < 4; ++k) {
-    const double a = std::numbers::pi / 4 + k * std::numbers::pi / 2;
-    scene.add_camera(look_at({2.5 * std::cos(a), 2.5 * std::sin(a), 1.3}, {0, 0, 1.0}), cylinder);
-  }
+  Scene scene = four_cameras_around(torso_cylinder());
   std::vector<ZipperCamera> cameras;
   for (size_t i = 0; i < scene.meshes.size(); ++i) cameras.push_back({&scene.meshes[i], &scene.colors[i], &scene.models[i]});
   ZipperScratch scratch;
