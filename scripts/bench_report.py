@@ -48,11 +48,11 @@ def stage_table(report, names):
     return lines
 
 
-def scale_rounds(folder, rig):
-    """A rig's `zipfusion bench` results, one per round (scale_RIG_1.json, scale_RIG_2.json, ...)."""
+def load_rounds(folder, stem):
+    """The results of numbered rounds, STEM_1.json, STEM_2.json, ..., up to the first missing one."""
     rounds = []
     for round_number in range(1, 100):
-        r = load(folder, f"scale_{rig}_{round_number}.json")
+        r = load(folder, f"{stem}_{round_number}.json")
         if r is None:
             break
         rounds.append(r)
@@ -66,7 +66,7 @@ def scaling_section(folder):
     # The 640×480 one is the 4-camera rig again, from its own capture: its ratio shows the rounds' noise.
     rigs += [(f"4 cameras, {size}" + (" (the same rig again)" if size == "640x480" else ""), f"size_{size}", 4,
               int(size.split("x")[0]) * int(size.split("x")[1])) for size in ("320x240", "640x480", "1280x960")]
-    results = {rig: scale_rounds(folder, rig) for _, rig, _, _ in rigs}
+    results = {rig: load_rounds(folder, f"scale_{rig}") for _, rig, _, _ in rigs}
     reference = results["cameras_4"]
     if not reference:
         return []
@@ -91,9 +91,9 @@ def scaling_section(folder):
         camera_triangles = config(first, "separate")["triangles"]
         one_thread = median_total(rig, "zipper 1 thread")
         def most_stolen(name):
-            shares = [config(r, name).get("cpu_stolen_share") for r in results[rig][:rounds]]
-            shares = [s for s in shares if s is not None]
-            return f"{100 * max(shares):.1f}" if shares else "–"
+            # The round with the most CPU time stolen (one that did not report it counts as least).
+            configs = [config(r, name) for r in results[rig][:rounds]]
+            return stolen(max(configs, key=lambda c: -1 if c.get("cpu_stolen_share") is None else c["cpu_stolen_share"]))
         pairs = config(first, "zipper").get("pairs")
         per_triangle = f"{1e6 * one_thread / camera_triangles:.0f}" if camera_triangles else "–"
         out.append(f"| {label} | {median_total(rig, 'zipper'):.1f} | {median_total(rig, 'zipper+filter'):.1f} | "
@@ -235,12 +235,8 @@ def main(folder):
             "better accuracy and completeness. "
             "The paper reports Poisson reconstruction taking seconds per frame.", ""]
 
-    paired = []
-    for round_number in range(1, 100):
-        zipfusion, o3d = load(folder, f"paired_zipfusion_{round_number}.json"), load(folder, f"paired_open3d_{round_number}.json")
-        if not (zipfusion and o3d):
-            break
-        paired.append((zipfusion, o3d["tsdf"]["total_ms"]["median"]))
+    paired = [(zipfusion, o3d["tsdf"]["total_ms"]["median"])
+              for zipfusion, o3d in zip(load_rounds(folder, "paired_zipfusion"), load_rounds(folder, "paired_open3d"))]
     if paired:
         labels = ["zipper+5x5 filter", "zipper", "zipper+filter", "zipper lod 1"]
         out += ["### The same ratios in alternating rounds", "",
@@ -314,7 +310,7 @@ def main(folder):
             "Each stage's share of the sum of the stages' medians in the per-stage table on samba-4cam (rounded, so a column "
             "may not add to exactly 100 %):", "",
             "| stage | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
-    sums = {n: sum(config(samba, n)["ms"][stage]["median"] for stage in STAGES if stage != "total") for n in names}
+    sums = {n: sum(config(samba, n)["ms"][stage]["median"] for stage in STAGES[:-1]) for n in names}
     for stage in STAGES[:-1]:
         out.append(f"| {stage} | " + " | ".join(f"{100 * config(samba, n)['ms'][stage]['median'] / sums[n]:.0f} %" for n in names) + " |")
     out += ["", "Inside the stages, see [profile.md](profile.md): `perf` and callgrind profiles taken apart from this run (per "
