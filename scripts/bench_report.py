@@ -59,6 +59,11 @@ def load_rounds(folder, stem):
     return rounds
 
 
+def median_and_range(values, digits):
+    """The median of per-round figures, and in brackets the lowest and highest round."""
+    return f"{statistics.median(values):.{digits}f} ({min(values):.{digits}f}–{max(values):.{digits}f})"
+
+
 def scaling_section(folder):
     """The scaling table: each rig's totals as the median over the rounds, and the growth against the
     4-camera 640×480 rig taken within each round."""
@@ -111,8 +116,7 @@ def scaling_section(folder):
         if rig == "cameras_4" or not results[rig]:
             continue
         def ratio(name):
-            ratios = [total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds])]
-            return f"{statistics.median(ratios):.2f} ({min(ratios):.2f}–{max(ratios):.2f})"
+            return median_and_range([total(r, name) / total(ref, name) for r, ref in zip(results[rig][:rounds], reference[:rounds])], 2)
         out.append(f"| {label} | {cameras * pixels / (4 * 640 * 480):.2f} | {config(results[rig][0], 'separate')['triangles'] / reference_triangles:.2f} | "
                    f"{ratio('zipper')} | {ratio('zipper 1 thread')} | {ratio('zipper+filter')} |")
     # Linear growth with an intercept (time = fixed + per camera · cameras) has a ratio above the
@@ -130,8 +134,7 @@ def scaling_section(folder):
         if not (results[before] and results[after]):
             continue
         def step(name):
-            costs = [(total(b, name) - total(a, name)) / added for a, b in zip(results[before][:rounds], results[after][:rounds])]
-            return f"{statistics.median(costs):.1f} ({min(costs):.1f}–{max(costs):.1f})"
+            return median_and_range([(total(b, name) - total(a, name)) / added for a, b in zip(results[before][:rounds], results[after][:rounds])], 1)
         out.append(f"| {label} | {step('zipper')} | {step('zipper 1 thread')} | {step('zipper+filter')} |")
     out.append("")
     return out
