@@ -211,6 +211,58 @@ TEST(ColorImage, GreyAndAlphaPngsDecodeToTheirPixels) {
   }
 }
 
+// A JPEG cut short or with corrupt data is an error naming the file, not an image with made-up
+// rows (libjpeg only warns about both), and the decoders print nothing of their own.
+TEST(ColorImage, CorruptJpegsAndPngsAreErrorsAndPrintNothing) {
+  cv::Mat bgr(48, 64, CV_8UC3);
+  cv::randu(bgr, 0, 255);
+  std::vector<std::uint8_t> jpeg, png;
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90}));
+  ASSERT_TRUE(cv::imencode(".png", bgr, png));
+  const ColorImage whole = decode_color_image(jpeg, "whole.jpg");
+  ASSERT_EQ(whole.width, 64);
+  ASSERT_EQ(whole.height, 48);
+
+  std::vector<std::uint8_t> cut = jpeg, scrambled = jpeg, cut_png = png;
+  cut.resize(jpeg.size() / 3);
+  // Bytes in the middle of the entropy-coded data replaced by a marker-like run.
+  for (size_t k = jpeg.size() / 2; k < jpeg.size() / 2 + 40; ++k) scrambled[k] = k % 2 ? 0xFF : 0xD3;
+  cut_png.resize(png.size() / 2);
+  const std::pair<const std::vector<std::uint8_t>*, const char*> cases[] = {{&cut, "cut.jpg"}, {&scrambled, "scrambled.jpg"}, {&cut_png, "cut.png"}};
+  for (const auto& [bytes, name] : cases) {
+    ::testing::internal::CaptureStderr();
+    std::string error;
+    try {
+      decode_color_image(*bytes, name);
+    } catch (const InvalidInput& e) {
+      error = e.what();
+    }
+    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "") << name;
+    EXPECT_EQ(error.rfind(std::string(name) + ": cannot decode image (corrupt or truncated): ", 0), 0u) << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  }
+}
+
+// The decoders' pixels are those OpenCV decodes from the same files (the same libraries).
+TEST(ColorImage, JpegAndDepthPngPixelsMatchOpenCv) {
+  cv::Mat bgr(30, 40, CV_8UC3);
+  cv::randu(bgr, 0, 255);
+  std::vector<std::uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 75}));
+  const cv::Mat reference = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+  const ColorImage color = decode_color_image(jpeg, "x.jpg");
+  for (int v = 0; v < 30; ++v) {
+    for (int u = 0; u < 40; ++u) {
+      const cv::Vec3b c = reference.at<cv::Vec3b>(v, u);
+      ASSERT_EQ(color(u, v), (Rgb8{c[2], c[1], c[0]})) << u << "," << v;
+    }
+  }
+  const DepthImage depth = ramp_depth(33, 17, 4);
+  const DepthImage decoded = decode_depth_png(encode_depth_png(depth), "d.png");
+  ASSERT_EQ(decoded.width, 33);
+  EXPECT_EQ(decoded.data, depth.data);
+}
+
 TEST(SharedData, EveryCaptureLoads) {
   ASSERT_TRUE(fs::is_directory(kSharedData)) << kSharedData;
   int captures = 0;

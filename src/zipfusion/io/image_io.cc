@@ -1,7 +1,12 @@
 #include "zipfusion/io/image_io.h"
 
+#include <jpeglib.h>
+#include <png.h>
+
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
@@ -19,35 +24,177 @@ bool is_jpeg(const std::vector<std::uint8_t>& bytes) {
   return bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
 }
 
-cv::Mat decode(const std::vector<std::uint8_t>& bytes, int flags, const std::string& source) {
-  cv::Mat image;
-  try {
-    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<std::uint8_t*>(bytes.data())), flags);
-  } catch (const cv::Exception&) {
-    image.release();
-  }
-  if (image.empty()) throw InvalidInput(source + ": cannot decode image (corrupt or truncated)");
-  return image;
+// Decoding goes to libpng and libjpeg directly rather than through cv::imdecode: OpenCV lets
+// libjpeg print its warnings to stderr and decodes what it can of a corrupt or truncated JPEG
+// ("Premature end of JPEG file", "Corrupt JPEG data"), so a cut-off colour frame came back as an
+// image with grey rows and no error; and libpng printed its own lines before zipfusion's. Here
+// every problem the libraries report, warnings about the pixels included, becomes one
+// InvalidInput naming the file, and nothing is printed.
+
+// Larger images than any depth camera's are refused before their pixels are allocated.
+constexpr std::uint32_t kMostImageSide = 1 << 15;
+constexpr std::uint64_t kMostImagePixels = std::uint64_t{1} << 26;
+
+[[noreturn]] void throw_undecodable(const std::string& source, const char* problem) {
+  throw InvalidInput(source + ": cannot decode image (corrupt or truncated): " + problem);
 }
 
-std::string describe(const cv::Mat& m) {
-  const int bits = m.depth() == CV_16U ? 16 : m.depth() == CV_8U ? 8 : 32;
-  return std::to_string(bits) + "-bit with " + std::to_string(m.channels()) + " channel(s)";
+void check_image_size(std::uint64_t width, std::uint64_t height, const std::string& source) {
+  if (width == 0 || height == 0 || width > kMostImageSide || height > kMostImageSide || width * height > kMostImagePixels) {
+    throw InvalidInput(source + ": image size: " + std::to_string(width) + "x" + std::to_string(height) + " is not a plausible camera image");
+  }
+}
+
+// libpng's callbacks: the bytes come from memory; an error records its message and jumps back to
+// the setjmp in decode_png; warnings concern ancillary chunks, not the pixels, and are dropped.
+struct PngSource {
+  const std::uint8_t* data = nullptr;
+  size_t size = 0;
+  size_t offset = 0;
+  const char* error = nullptr;
+  char message[200] = {};
+};
+
+void png_read_bytes(png_structp png, png_bytep out, size_t length) {
+  auto* source = static_cast<PngSource*>(png_get_io_ptr(png));
+  if (length > source->size - source->offset) png_error(png, "the file ends early");
+  std::memcpy(out, source->data + source->offset, length);
+  source->offset += length;
+}
+
+void png_on_error(png_structp png, png_const_charp message) {
+  auto* source = static_cast<PngSource*>(png_get_error_ptr(png));
+  std::snprintf(source->message, sizeof source->message, "%s", message);
+  source->error = source->message;
+  png_longjmp(png, 1);
+}
+
+void png_on_warning(png_structp, png_const_charp) {}
+
+// The pixels of a PNG: 16-bit grey (native byte order) for depth, else 8-bit RGB. Every object
+// with a destructor lives outside the setjmp's scope (a longjmp must skip none).
+struct PngPixels {
+  std::uint32_t width = 0, height = 0;
+  std::vector<std::uint8_t> bytes;
+  std::vector<png_bytep> rows;
+};
+
+void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::string& source, PngPixels& out) {
+  PngSource input{bytes.data(), bytes.size()};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &input, png_on_error, png_on_warning);
+  if (png == nullptr) throw IoError(source + ": libpng could not start");
+  png_infop info = png_create_info_struct(png);
+  // What the file holds, when it is not what was asked for (set inside, thrown outside).
+  int wrong_bits = 0, wrong_channels = 0;
+  if (info != nullptr && setjmp(png_jmpbuf(png)) == 0) {
+    png_set_read_fn(png, &input, png_read_bytes);
+    png_set_user_limits(png, kMostImageSide, kMostImageSide);
+    png_read_info(png, info);
+    const int bit_depth = png_get_bit_depth(png, info), color_type = png_get_color_type(png, info);
+    out.width = png_get_image_width(png, info);
+    out.height = png_get_image_height(png, info);
+    if (static_cast<std::uint64_t>(out.width) * out.height > kMostImagePixels) png_error(png, "image too large");
+    if (depth) {
+      if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY) {
+        wrong_bits = bit_depth;
+        wrong_channels = png_get_channels(png, info);
+      } else {
+        png_set_swap(png);  // PNG stores 16-bit samples big-endian
+      }
+    } else if (bit_depth > 8) {
+      wrong_bits = bit_depth;
+      wrong_channels = png_get_channels(png, info);
+    } else {
+      png_set_expand(png);        // palette to RGB, grey below 8 bits to 8
+      png_set_strip_alpha(png);
+      png_set_gray_to_rgb(png);
+    }
+    if (wrong_bits == 0) {
+      png_set_interlace_handling(png);
+      png_read_update_info(png, info);
+      const size_t row_bytes = png_get_rowbytes(png, info);
+      if (row_bytes != static_cast<size_t>(out.width) * (depth ? 2 : 3)) png_error(png, "unexpected row layout");
+      out.bytes.resize(row_bytes * out.height);
+      out.rows.resize(out.height);
+      for (std::uint32_t v = 0; v < out.height; ++v) out.rows[v] = out.bytes.data() + v * row_bytes;
+      png_read_image(png, out.rows.data());
+      png_read_end(png, nullptr);
+    }
+  } else if (info == nullptr) {
+    input.error = "out of memory";
+  }
+  png_destroy_read_struct(&png, info != nullptr ? &info : nullptr, nullptr);
+  if (input.error != nullptr) throw_undecodable(source, input.error);
+  if (wrong_bits != 0) {
+    throw InvalidInput(source + ": bit depth: " + (depth ? "depth PNG must be 16-bit single-channel" : "colour must be 8-bit") + ", got " +
+                       std::to_string(wrong_bits) + "-bit with " + std::to_string(wrong_channels) + " channel(s)");
+  }
+  check_image_size(out.width, out.height, source);
+}
+
+// libjpeg's error manager: an error, and also a warning (libjpeg warns, and goes on with made-up
+// pixels, where the data is corrupt or the file ends early), formats its message and jumps back.
+struct JpegErrors {
+  jpeg_error_mgr manager;
+  std::jmp_buf jump;
+  char message[JMSG_LENGTH_MAX];
+};
+
+[[noreturn]] void jpeg_on_error(j_common_ptr jpeg) {
+  auto* errors = reinterpret_cast<JpegErrors*>(jpeg->err);
+  (*jpeg->err->format_message)(jpeg, errors->message);
+  std::longjmp(errors->jump, 1);
+}
+
+void jpeg_on_message(j_common_ptr jpeg, int level) {
+  if (level < 0) jpeg_on_error(jpeg);  // a warning: the pixels are not what the camera recorded
+}
+
+void jpeg_no_output(j_common_ptr) {}
+
+// Decodes a JPEG into `color` (resized to it).
+void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& source, ColorImage& color) {
+  jpeg_decompress_struct jpeg{};
+  JpegErrors errors{};
+  jpeg.err = jpeg_std_error(&errors.manager);
+  errors.manager.error_exit = jpeg_on_error;
+  errors.manager.emit_message = jpeg_on_message;
+  errors.manager.output_message = jpeg_no_output;
+  bool too_large = false;
+  if (setjmp(errors.jump) != 0) {
+    jpeg_destroy_decompress(&jpeg);
+    throw_undecodable(source, errors.message);
+  }
+  jpeg_create_decompress(&jpeg);
+  jpeg_mem_src(&jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
+  jpeg_read_header(&jpeg, TRUE);
+  jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
+  if (static_cast<std::uint64_t>(jpeg.image_width) * jpeg.image_height > kMostImagePixels || jpeg.image_width > kMostImageSide ||
+      jpeg.image_height > kMostImageSide) {
+    too_large = true;
+  } else {
+    jpeg_start_decompress(&jpeg);
+    color = ColorImage(static_cast<int>(jpeg.output_width), static_cast<int>(jpeg.output_height));
+    static_assert(sizeof(Rgb8) == 3);
+    while (jpeg.output_scanline < jpeg.output_height) {
+      JSAMPROW row = reinterpret_cast<JSAMPROW>(color.data.data() + static_cast<size_t>(jpeg.output_scanline) * jpeg.output_width);
+      jpeg_read_scanlines(&jpeg, &row, 1);
+    }
+    jpeg_finish_decompress(&jpeg);
+  }
+  const std::uint64_t width = jpeg.image_width, height = jpeg.image_height;
+  jpeg_destroy_decompress(&jpeg);
+  if (too_large) check_image_size(width, height, source);
 }
 
 }  // namespace
 
 DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source) {
   if (!is_png(bytes)) throw InvalidInput(source + ": not a PNG file (depth must be 16-bit PNG)");
-  const cv::Mat m = decode(bytes, cv::IMREAD_UNCHANGED, source);
-  if (m.depth() != CV_16U || m.channels() != 1) {
-    throw InvalidInput(source + ": bit depth: depth PNG must be 16-bit single-channel, got " + describe(m));
-  }
-  DepthImage depth(m.cols, m.rows);
-  for (int v = 0; v < m.rows; ++v) {
-    const auto* row = m.ptr<std::uint16_t>(v);
-    std::copy(row, row + m.cols, depth.data.begin() + static_cast<size_t>(v) * m.cols);
-  }
+  PngPixels pixels;
+  decode_png(bytes, true, source, pixels);
+  DepthImage depth(static_cast<int>(pixels.width), static_cast<int>(pixels.height));
+  std::memcpy(depth.data.data(), pixels.bytes.data(), pixels.bytes.size());
   return depth;
 }
 
@@ -56,24 +203,16 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
 }
 
 ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std::string& source) {
-  if (!is_png(bytes) && !is_jpeg(bytes)) throw InvalidInput(source + ": not a JPEG or PNG file");
-  cv::Mat m = decode(bytes, cv::IMREAD_UNCHANGED, source);
-  if (m.depth() != CV_8U) {
-    throw InvalidInput(source + ": bit depth: colour must be 8-bit, got " + describe(m));
+  if (is_jpeg(bytes)) {
+    ColorImage color;
+    decode_jpeg(bytes, source, color);
+    return color;
   }
-  int conversion = 0;
-  switch (m.channels()) {
-    case 1: conversion = cv::COLOR_GRAY2RGB; break;
-    case 3: conversion = cv::COLOR_BGR2RGB; break;
-    case 4: conversion = cv::COLOR_BGRA2RGB; break;
-    default: throw InvalidInput(source + ": colour image has " + std::to_string(m.channels()) + " channels");
-  }
-  // Converted straight into the image's pixels (Rgb8 is three packed bytes, as CV_8UC3): no
-  // intermediate image and no copy of it.
-  static_assert(sizeof(Rgb8) == 3);
-  ColorImage color(m.cols, m.rows);
-  cv::Mat rgb(m.rows, m.cols, CV_8UC3, color.data.data());
-  cv::cvtColor(m, rgb, conversion);
+  if (!is_png(bytes)) throw InvalidInput(source + ": not a JPEG or PNG file");
+  PngPixels pixels;
+  decode_png(bytes, false, source, pixels);
+  ColorImage color(static_cast<int>(pixels.width), static_cast<int>(pixels.height));
+  std::memcpy(color.data.data(), pixels.bytes.data(), pixels.bytes.size());
   return color;
 }
 

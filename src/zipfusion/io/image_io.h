@@ -1,8 +1,10 @@
 #pragma once
 //! \file
-//! Depth and colour image files of a rig capture, decoded and encoded by OpenCV. Decoding checks
-//! what the format promises (16-bit single-channel depth PNG; 8-bit colour JPEG/PNG) and throws
-//! InvalidInput naming the file and what is wrong, or IoError when the file cannot be read.
+//! Depth and colour image files of a rig capture, decoded by libpng and libjpeg and encoded by
+//! OpenCV. Decoding checks what the format promises (16-bit single-channel depth PNG; 8-bit colour
+//! JPEG/PNG) and throws InvalidInput naming the file and what is wrong (a corrupt or truncated
+//! file included, even where the library could make up the missing pixels), or IoError when the
+//! file cannot be read. It never prints.
 
 #include <cstdint>
 #include <filesystem>
