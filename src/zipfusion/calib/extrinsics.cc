@@ -121,6 +121,10 @@ WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& 
                              const std::function<void(int, int)>& progress) {
   options.validate();
   const Rig& rig = capture.rig();
+  if (rig.cameras.size() < 2) {
+    throw InvalidInput((capture.dir() / "rig.json").string() + ": cameras: extrinsic calibration needs at least 2 cameras, the rig has " +
+                       std::to_string(rig.cameras.size()));
+  }
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     if (!rig.cameras[c].has_color()) {
       throw InvalidInput((capture.dir() / "rig.json").string() + ": cameras[" + std::to_string(c) + "] (\"" + rig.cameras[c].name +
@@ -154,6 +158,8 @@ ExtrinsicResult calibrate_extrinsics(const Rig& rig, const WandObservations& obs
   options.validate();
   const int n = static_cast<int>(rig.cameras.size());
   assert(observations.cameras == n);
+  // One camera has no pose to find relative to another (Ceres aborted on the empty problem).
+  if (n < 2) throw InvalidInput("rig.json: cameras: extrinsic calibration needs at least 2 cameras, the rig has " + std::to_string(n));
   const int frames = observations.frames;
   std::vector<Intrinsics> k(n);
   for (int c = 0; c < n; ++c) {

@@ -170,6 +170,27 @@ TEST(Extrinsics, DropsGrossMisdetectionsAndKeepsTheTargets) {
   EXPECT_LT(after.worst_rotation_deg, 0.2);
 }
 
+// A one-camera rig is an error naming the field, not an abort inside Ceres.
+TEST(Extrinsics, OneCameraIsAnError) {
+  const WandOptions wand{.frames = 60};
+  const Fixture fx = make_fixture(2, wand);
+  const WandObservations both = project_wand(fx, wand.frames, 0.3);
+  Rig one = fx.start;
+  one.cameras.resize(1);
+  WandObservations obs(1, wand.frames);
+  for (int f = 0; f < wand.frames; ++f) {
+    obs.usable[obs.at(0, f)] = both.usable[both.at(0, f)];
+    obs.red[obs.at(0, f)] = both.red[both.at(0, f)];
+    obs.green[obs.at(0, f)] = both.green[both.at(0, f)];
+  }
+  try {
+    calibrate_extrinsics(one, obs);
+    FAIL() << "one camera must not calibrate";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("cameras: extrinsic calibration needs at least 2 cameras, the rig has 1"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Extrinsics, ValidateNamesTheField) {
   try {
     ExtrinsicOptions{.led_distance_m = -1}.validate();
