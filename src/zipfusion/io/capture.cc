@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cmath>
 #include <tuple>
 #include <cstdio>
 #include <system_error>
@@ -130,7 +131,24 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
     check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
+  capture.depth_source_pixel_.resize(rig.cameras.size());
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    const Intrinsics& k = rig.cameras[c].depth_intrinsics;
+    if (k.has_distortion && k.distortion != std::array<double, 5>{}) capture.depth_source_pixel_[c] = depth_undistortion_map(k);
+  }
   return capture;
+}
+
+std::vector<int> depth_undistortion_map(const Intrinsics& k) {
+  std::vector<int> source_pixel(static_cast<size_t>(k.width) * k.height, -1);
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const Eigen::Vector2d xy = distort(k, {(u - k.cx) / k.fx, (v - k.cy) / k.fy});
+      const double su = std::round(k.fx * xy.x() + k.cx), sv = std::round(k.fy * xy.y() + k.cy);
+      if (su >= 0 && sv >= 0 && su < k.width && sv < k.height) source_pixel[static_cast<size_t>(v) * k.width + u] = static_cast<int>(sv) * k.width + static_cast<int>(su);
+    }
+  }
+  return source_pixel;
 }
 
 fs::path Capture::ground_truth_mesh_path(int frame) const {
@@ -156,6 +174,12 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   if (fs::exists(depth_file, ec)) {
     out.depth = read_depth_png(depth_file);
     check_size(depth_file.string(), out.depth.width, out.depth.height, model.depth_intrinsics, "depth_intrinsics");
+    const std::vector<int>& source_pixel = depth_source_pixel_[camera];
+    if (!source_pixel.empty()) {
+      DepthImage undistorted(out.depth.width, out.depth.height);
+      for (int p = 0; p < static_cast<int>(undistorted.data.size()); ++p) undistorted.data[p] = undistorted_depth(out.depth.data.data(), source_pixel.data(), p);
+      out.depth = std::move(undistorted);
+    }
     out.has_depth = true;
   } else if (options_.strict) {
     throw InvalidInput(depth_file.string() + ": missing frame");

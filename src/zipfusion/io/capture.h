@@ -67,7 +67,10 @@ class Capture {
 
   //! Decodes one camera's frame. Throws InvalidInput for a corrupt file or one whose size or bit
   //! depth does not match rig.json; a missing file leaves has_depth/has_color false (or throws
-  //! when opened strict).
+  //! when opened strict). Depth whose intrinsics have distortion comes back undistorted: each
+  //! pixel of a pinhole camera with the same fx, fy, cx, cy takes the depth of the recorded pixel
+  //! nearest to where its ray falls (0 where that lies outside the image), so the rest of
+  //! zipfusion, which back-projects depth through the pinhole model, sees straight rays.
   CameraFrame load_camera_frame(int frame, int camera) const;
   FrameSet load_frame(int frame) const;
 
@@ -79,7 +82,18 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   std::vector<std::vector<std::string>> color_extension_;  // [camera][frame]: ".jpg", ".png" or ""
+  // [camera]: per pinhole pixel, the recorded pixel it takes its depth from (−1: none); empty for
+  // a camera whose depth has no distortion.
+  std::vector<std::vector<int>> depth_source_pixel_;
 };
+
+//! For a depth camera with lens distortion: per pixel of the pinhole camera of the same fx, fy, cx,
+//! cy, the index of the recorded pixel nearest to where its ray falls, or −1 outside the image.
+std::vector<int> depth_undistortion_map(const Intrinsics& k);
+//! Element function of the undistortion: pinhole pixel p of `recorded` through the map.
+inline std::uint16_t undistorted_depth(const std::uint16_t* recorded, const int* source_pixel, int p) {
+  return source_pixel[p] >= 0 ? recorded[source_pixel[p]] : 0;
+}
 
 //! Frame file name: 6-digit zero-padded index plus extension ("000042.png").
 std::string frame_file_name(int frame, const std::string& extension);
