@@ -44,6 +44,21 @@ class Fields {
     if (d <= 0) fail(field(key), "must be positive, got " + required(key).dump());
     return d;
   }
+  // A positive number inside [lowest, highest]: values outside are no camera's, and would pass
+  // through the reconstruction as empty or garbage meshes rather than fail (a focal length of
+  // 1e-300 pixels, a depth unit of 1e30 metres).
+  double plausible(const std::string& key, double lowest, double highest, const std::string& unit) const {
+    const double d = positive(key);
+    if (!(d >= lowest && d <= highest)) {
+      fail(field(key), "must be in [" + short_number(lowest) + ", " + short_number(highest) + "] " + unit + ", got " + required(key).dump());
+    }
+    return d;
+  }
+  static std::string short_number(double d) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", d);
+    return text;
+  }
   int integer(const std::string& key, int min_value) const {
     const json& v = required(key);
     if (!v.is_number_integer()) fail(field(key), "must be an integer, got " + v.dump());
@@ -77,14 +92,20 @@ class Fields {
   std::string path_;
 };
 
+constexpr double kMostTranslationM = 1000;
+
 Intrinsics parse_intrinsics(const Fields& f) {
   Intrinsics k;
   k.width = f.integer("width", 1);
   k.height = f.integer("height", 1);
-  k.fx = f.positive("fx");
-  k.fy = f.positive("fy");
+  // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175
+  // degrees, past any pinhole lens. The principal point within an image's size of the image.
+  k.fx = f.plausible("fx", 0.02 * k.width, 100.0 * k.width, "pixels for an image " + std::to_string(k.width) + " pixels wide");
+  k.fy = f.plausible("fy", 0.02 * k.height, 100.0 * k.height, "pixels for an image " + std::to_string(k.height) + " pixels high");
   k.cx = f.number("cx");
   k.cy = f.number("cy");
+  if (!(k.cx >= -k.width && k.cx <= 2.0 * k.width)) f.fail(f.field("cx"), "must be in [-width, 2 width] pixels, got " + f.required("cx").dump());
+  if (!(k.cy >= -k.height && k.cy <= 2.0 * k.height)) f.fail(f.field("cy"), "must be in [-height, 2 height] pixels, got " + f.required("cy").dump());
   if (f.has("distortion")) {
     const std::vector<double> d = f.numbers(f.required("distortion"), f.field("distortion"), 5);
     std::copy(d.begin(), d.end(), k.distortion.begin());
@@ -104,6 +125,10 @@ Rigid3d parse_rigid(const Fields& parent, const std::string& key) {
   }
   if (!is_rigid(m)) {
     parent.fail(field, "is not a rigid transform (rotation must be orthonormal with det +1, last row 0 0 0 1)");
+  }
+  // Metres: a rig is room-sized; a kilometre is far past any, and 1e300 would overflow the maths.
+  if (m.topRightCorner<3, 1>().cwiseAbs().maxCoeff() > kMostTranslationM) {
+    parent.fail(field, "translation must be within " + std::to_string(static_cast<int>(kMostTranslationM)) + " m of the origin on each axis");
   }
   // Exactly orthonormal input is kept bit for bit (exact round trips); rounded input is repaired.
   const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
@@ -146,7 +171,7 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   json root;
   try {
     root = json::parse(json_text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double's range
     throw InvalidInput(source + ": not valid JSON: " + e.what());
   }
   const Fields top(root, source, "");
@@ -154,9 +179,9 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   if (format != kRigFormat) top.fail("format", "must be \"" + std::string(kRigFormat) + "\", got \"" + format + "\"");
 
   Rig rig;
-  rig.fps = top.positive("fps");
+  rig.fps = top.plausible("fps", 0.001, 1000, "frames per second");
   rig.frame_count = top.integer("frame_count", 0);
-  if (top.has("depth_unit_m")) rig.depth_unit_m = top.positive("depth_unit_m");
+  if (top.has("depth_unit_m")) rig.depth_unit_m = top.plausible("depth_unit_m", 1e-6, 1, "metres");
   if (top.has("poses_trusted")) {
     const json& trusted = top.required("poses_trusted");
     if (!trusted.is_boolean()) top.fail("poses_trusted", "must be true or false, got " + trusted.dump());

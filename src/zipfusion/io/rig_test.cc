@@ -148,6 +148,15 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
        "cameras[1].world_from_depth: must be a 4x4 array of rows"},
       {"text in matrix", [](json& j) { j["cameras"][0]["color_from_depth"][1][2] = "0"; },
        "cameras[0].color_from_depth[1]: must hold finite numbers only"},
+      // Values no camera has, which would otherwise make empty or garbage meshes without an error.
+      {"tiny fps", [](json& j) { j["fps"] = 1e-300; }, "fps: must be in [0.001, 1000] frames per second"},
+      {"huge depth unit", [](json& j) { j["depth_unit_m"] = 1e30; }, "depth_unit_m: must be in [1e-06, 1] metres"},
+      {"tiny focal", [](json& j) { j["cameras"][1]["depth_intrinsics"]["fx"] = 1e-300; },
+       "cameras[1].depth_intrinsics.fx: must be in [6.4, 32000] pixels for an image 320 pixels wide"},
+      {"huge focal", [](json& j) { j["cameras"][0]["color_intrinsics"]["fy"] = 1e300; }, "cameras[0].color_intrinsics.fy: must be in"},
+      {"far principal point", [](json& j) { j["cameras"][0]["depth_intrinsics"]["cx"] = 5000; }, "cameras[0].depth_intrinsics.cx: must be in"},
+      {"far camera", [](json& j) { j["cameras"][1]["world_from_depth"][0][3] = 1e300; },
+       "cameras[1].world_from_depth: translation must be within 1000 m"},
   };
   for (const BadCase& c : cases) {
     const std::string error = error_after(c.edit);
@@ -165,6 +174,14 @@ TEST_F(RigFile, BrokenJsonAndMissingFileAreReported) {
     EXPECT_NE(std::string(e.what()).find("rig.json: not valid JSON"), std::string::npos) << e.what();
   }
   EXPECT_THROW(read_rig(dir_ / "absent.json"), IoError);
+  // A number past double's range is nlohmann's out_of_range, not a parse_error: the same message.
+  write_file_atomic(dir_ / "rig.json", std::string_view("{\"format\": \"zipfusion.rig/1\", \"fps\": 1e400}"));
+  try {
+    read_rig(dir_ / "rig.json");
+    FAIL() << "no error";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("rig.json: not valid JSON"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
