@@ -289,7 +289,7 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json (e.g. CAPTURE/ground_truth/rig.json)");
   cmd->add_option("--soak", args->soak, "Also reconstruct this many frame sets in a row and report resident memory at 100 and at the end")
       ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_threads_option(cmd, args->threads);
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
   cmd->callback([args] { run_bench(*args); });
 }

@@ -163,7 +163,7 @@ void add_calibrate_command(CLI::App& app) {
   extr->add_option("--led-distance", ex->options.led_distance_m, "Distance between the LEDs, metres")->capture_default_str();
   extr->add_option("--out", ex->out, "Output rig.json (the capture's rig with calibrated poses)")->required();
   extr->add_option("--min-common-frames", ex->options.min_common_frames, "Frames two cameras must share to be paired")->capture_default_str();
-  extr->add_option("--threads", ex->threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_threads_option(extr, ex->threads);
   extr->callback([ex] { run_extrinsics(*ex); });
 }
 

@@ -51,6 +51,7 @@ TEST_F(Cli, SynthThenInfoDescribesTheCapture) {
 TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
   struct Case {
     std::string args, expected;
+    int exit_code = 2;  // invalid input; 3: a file or folder cannot be read
   };
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 1 --cameras 2 --noise none").exit_code, 0);
@@ -62,18 +63,24 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
   write_file_atomic(fs::path(broken) / "rig.json", rig);
 
   const std::vector<Case> cases = {
-      {"info " + (dir_ / "nowhere").string(), "nowhere: not a capture folder"},
+      {"info " + (dir_ / "nowhere").string(), "nowhere: not a capture folder", 3},
       {"info " + broken, "rig.json: cameras[0].depth_intrinsics.fx: must be positive"},
       {"synth --out " + capture, "already exists and is not empty"},
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
-      {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply"},
+      {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "seam-smoothing: must be in [0, 4] pixels"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-fairing 9", "seam-fairing: must be in [0, 8] rounds"},
+      // Usage errors that CLI11 finds: one line too, with the same prefix, exit 2.
+      {"frobnicate", "zipfusion: error: unknown command \"frobnicate\" (commands: synth, info,"},
+      {"", "zipfusion: error: A subcommand is required"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --threads -1", "zipfusion: error: --threads: Value -1 not in range 0 to 1024"},
+      {"synth --out " + (dir_ / "x").string() + " --threads 100000", "--threads: Value 100000 not in range 0 to 1024"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --no-such-flag", "zipfusion: error: The following argument was not expected: --no-such-flag"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
-    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.args;
     EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
   }

@@ -16,6 +16,12 @@ void add_calibrate_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
 void add_record_command(CLI::App& app);
 
+//! The --threads option every subcommand has: 0 (all cores) to kMostThreads.
+inline constexpr int kMostThreads = 1024;
+inline CLI::Option* add_threads_option(CLI::App* cmd, int& threads, const std::string& what = "Worker threads (0 = all cores)") {
+  return cmd->add_option("--threads", threads, what)->check(CLI::Range(0, kMostThreads))->capture_default_str();
+}
+
 //! Progress on standard error, only when it is a terminal: "label: done/total".
 void show_progress(const std::string& label, int done, int total);
 

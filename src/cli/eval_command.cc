@@ -224,7 +224,7 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("recon_dir", args->recon_dir, "Folder of reconstructions, one NNNNNN.ply or .obj per frame")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B (B exclusive; 'A:', ':B' or 'N'); default all");
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
-  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber)->capture_default_str();
+  add_threads_option(cmd, o.num_threads);
   cmd->add_option("--completeness-mm", args->completeness_mm, "A true point is covered when the reconstruction is this close, mm")
       ->check(CLI::Range(0.01, 1000.0))
       ->capture_default_str();
@@ -238,7 +238,7 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--min-component-triangles", o.min_component_triangles, "Components with at least this many triangles count as large")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   cmd->add_option("--min-range", o.min_range_m, "Cameras observe from this depth, metres")->capture_default_str();
   cmd->add_option("--max-range", o.max_range_m, "... to this depth, metres")->capture_default_str();

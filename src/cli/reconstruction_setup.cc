@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "cli/commands.h"
+
 
 namespace zipfusion::cli {
 
@@ -72,7 +74,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
       ->capture_default_str();
   cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
       ->capture_default_str();
-  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_threads_option(cmd, o.num_threads);
 }
 
 nlohmann::ordered_json options_json(const ReconstructOptions& options) {

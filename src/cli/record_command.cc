@@ -119,7 +119,7 @@ void add_record_command(CLI::App& app) {
                   "without it poses are identity");
   cmd->add_option("--color-format", args->color_format, "Colour files: jpg or png")->check(CLI::IsMember({"jpg", "png"}))->capture_default_str();
   cmd->add_option("--jpeg-quality", args->options.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
-  cmd->add_option("--threads", args->options.num_threads, "Encoding threads (0 = all cores)")->capture_default_str();
+  add_threads_option(cmd, args->options.num_threads, "Encoding threads (0 = all cores)");
   cmd->add_flag("--list-devices", args->list_devices, "List the Kinect v1 devices (index and serial) and exit");
   cmd->callback([args] { run_record(*args); });
 }

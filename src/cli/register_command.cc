@@ -107,7 +107,7 @@ void add_register_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("!--floor-every-frame", o.floor_counts_once,
                 "Weigh the floor's correspondences in full in every frame (default: 1/F over F frames, as it does not move)");
-  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_threads_option(cmd, o.num_threads);
   cmd->callback([args] { run_register(*args); });
 }
 

@@ -161,7 +161,7 @@ void add_synth_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--jpeg-quality", o.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
   cmd->add_flag("--no-floor", args->no_floor, "Do not render the floor");
-  cmd->add_option("--threads", o.num_threads, "Worker threads (0 = all cores)")->capture_default_str();
+  add_threads_option(cmd, o.num_threads);
   cmd->callback([args, cmd] {
     args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
     run_synth(*args);

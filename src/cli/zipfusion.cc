@@ -36,10 +36,27 @@ int main(int argc, char** argv) {
   zipfusion::cli::add_calibrate_command(app);
   zipfusion::cli::add_serve_command(app);
   zipfusion::cli::add_record_command(app);
+  // CLI11 reads an unknown command as a stray argument and says only that a subcommand is required.
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string commands;
+    bool known = false;
+    for (const CLI::App* command : app.get_subcommands({})) {
+      commands += (commands.empty() ? "" : ", ") + command->get_name();
+      known = known || command->check_name(argv[1]);
+    }
+    if (!known) {
+      std::cerr << "zipfusion: error: unknown command \"" << argv[1] << "\" (commands: " << commands << ")\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version print and exit 0 as CLI11 does; a usage error is one line like every
+    // other error, exit 2 (invalid input).
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::cerr << "zipfusion: error: " << e.what() << " (see --help)\n";
+    return 2;
   } catch (const zipfusion::InvalidInput& e) {
     std::cerr << "zipfusion: error: " << e.what() << "\n";
     return 2;
