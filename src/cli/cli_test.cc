@@ -130,6 +130,23 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   EXPECT_NE(bad.err.find("--frames: \"2:9\" selects no frames of a capture with 3 frames"), std::string::npos) << bad.err;
 }
 
+// A corrupt frame stops the run with one line naming the file, and a folder that run created for
+// its output is not left behind empty.
+TEST_F(Cli, CorruptFrameLeavesNoOutputFolder) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path depth = capture / "cam1" / "depth" / "000000.png";
+  std::vector<std::uint8_t> bytes = read_file_bytes(depth);
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(depth, bytes);
+  const fs::path out = dir_ / "out";
+  const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find(depth.string() + ": cannot decode image (corrupt or truncated)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(Cli, EverySubcommandHasHelp) {
   for (const std::string sub : {"synth", "info", "reconstruct", "eval"}) {
     const CommandResult r = run(sub + " --help");

@@ -37,18 +37,33 @@ double median_of(std::vector<double> values) {
   return values[values.size() / 2];
 }
 
+void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, const fs::path& out_dir);
+
 void run_reconstruct(ReconstructArgs& args) {
   if (!args.input.live && args.input.seconds > 0) throw InvalidInput("--seconds: only with --live");
   ReconstructionArgs& r = args.reconstruction;
   Input in;
   open_input(args.input, r.rig, r.register_mode, in);
   Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
-  const FrameRange& range = in.range;
 
   const fs::path out_dir = args.out;
   std::error_code ec;
+  const bool out_dir_is_new = !fs::exists(out_dir, ec);
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
+  try {
+    write_reconstruction(args, in, reconstruction, out_dir);
+  } catch (...) {
+    // A run that fails before writing anything (a corrupt first frame) leaves no empty folder.
+    if (out_dir_is_new && fs::is_empty(out_dir, ec)) fs::remove(out_dir, ec);
+    throw;
+  }
+}
+
+// Reconstructs every frame set of `in` into out_dir (NNNNNN.ply or .obj) and writes stats.json.
+void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, const fs::path& out_dir) {
+  ReconstructionArgs& r = args.reconstruction;
+  const FrameRange& range = in.range;
 
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
