@@ -84,9 +84,14 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &input, png_on_error, png_on_warning);
   if (png == nullptr) throw IoError(source + ": libpng could not start");
   png_infop info = png_create_info_struct(png);
+  if (info == nullptr) {
+    png_destroy_read_struct(&png, nullptr, nullptr);
+    throw IoError(source + ": libpng could not start");
+  }
   // What the file holds, when it is not what was asked for (set inside, thrown outside).
   int wrong_bits = 0, wrong_channels = 0;
-  if (info != nullptr && setjmp(png_jmpbuf(png)) == 0) {
+  // setjmp alone in the condition, as C allows it.
+  if (setjmp(png_jmpbuf(png)) == 0) {
     png_set_read_fn(png, &input, png_read_bytes);
     png_set_user_limits(png, kMostImageSide, kMostImageSide);
     png_read_info(png, info);
@@ -120,10 +125,8 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
       png_read_image(png, out.rows.data());
       png_read_end(png, nullptr);
     }
-  } else if (info == nullptr) {
-    input.error = "out of memory";
   }
-  png_destroy_read_struct(&png, info != nullptr ? &info : nullptr, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
   if (input.error != nullptr) throw_undecodable(source, input.error);
   if (wrong_bits != 0) {
     throw InvalidInput(source + ": bit depth: " + (depth ? "depth PNG must be 16-bit single-channel" : "colour must be 8-bit") + ", got " +
