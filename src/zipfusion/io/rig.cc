@@ -18,7 +18,7 @@ class Fields {
  public:
   Fields(const json& object, std::string source, std::string path)
       : object_(object), source_(std::move(source)), path_(std::move(path)) {
-    if (!object_.is_object()) fail(path_, "must be an object");
+    if (!object_.is_object()) fail(path_.empty() ? "top level" : path_, "must be an object");
   }
 
   [[noreturn]] void fail(const std::string& field, const std::string& problem) const {

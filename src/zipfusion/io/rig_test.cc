@@ -120,6 +120,7 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
   const std::vector<BadCase> cases = {
       {"missing format", [](json& j) { j.erase("format"); }, "format: missing required key"},
       {"wrong format", [](json& j) { j["format"] = "zipfusion.rig/2"; }, "format: must be"},
+      {"array at the top", [](json& j) { j = json::array({1, 2}); }, "rig.json: top level: must be an object"},
       {"missing fps", [](json& j) { j.erase("fps"); }, "fps: missing required key"},
       {"zero fps", [](json& j) { j["fps"] = 0; }, "fps: must be positive"},
       {"fractional frame_count", [](json& j) { j["frame_count"] = 2.5; }, "frame_count: must be an integer"},
