@@ -68,6 +68,8 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + capture, "already exists and is not empty"},
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
+      // A folder that cannot be made is named as asked for, not as the hidden one it is built in.
+      {"synth --out /proc/zf_cli_test_capture", "zipfusion: error: /proc/zf_cli_test_capture: cannot write (", 3},
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "seam-smoothing: must be in [0, 4] pixels"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-fairing 9", "seam-fairing: must be in [0, 8] rounds"},
@@ -76,6 +78,8 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"", "zipfusion: error: A subcommand is required"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --threads -1", "zipfusion: error: --threads: Value -1 not in range 0 to 1024"},
       {"synth --out " + (dir_ / "x").string() + " --threads 100000", "--threads: Value 100000 not in range 0 to 1024"},
+      {"eval " + capture + " " + (dir_ / "x").string() + " --spacing-mm nan", "zipfusion: error: --spacing-mm: must be a finite number, got nan"},
+      {"eval " + capture + " " + (dir_ / "x").string() + " --min-range 2 --max-range 1", "zipfusion: error: --max-range: must be above --min-range"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --no-such-flag", "zipfusion: error: The following argument was not expected: --no-such-flag"},
   };
   for (const Case& c : cases) {
@@ -127,7 +131,9 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   }
   const CommandResult bad = run("reconstruct " + capture + " --out " + zipper + " --frames 2:9");
   EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.err.find("--frames: \"2:9\" selects no frames of a capture with 3 frames"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("--frames: \"2:9\" reaches past the last frame of a capture with 3 frames"), std::string::npos) << bad.err;
+  const CommandResult empty = run("reconstruct " + capture + " --out " + zipper + " --frames 2:2");
+  EXPECT_NE(empty.err.find("--frames: \"2:2\" selects no frames of a capture with 3 frames"), std::string::npos) << empty.err;
 }
 
 // A corrupt frame stops the run with one line naming the file, and a folder that run created for

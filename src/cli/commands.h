@@ -2,6 +2,7 @@
 // Subcommands of the zipfusion CLI: each adds itself to the app and runs from its callback.
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <string>
 
 namespace zipfusion::cli {
@@ -21,6 +22,19 @@ inline constexpr int kMostThreads = 1024;
 inline CLI::Option* add_threads_option(CLI::App* cmd, int& threads, const std::string& what = "Worker threads (0 = all cores)") {
   return cmd->add_option("--threads", threads, what)->check(CLI::Range(0, kMostThreads))->capture_default_str();
 }
+
+//! A number that is finite: CLI11's Range lets NaN through (every comparison with it is false).
+inline const CLI::Validator kFiniteNumber(
+    [](std::string& text) -> std::string {
+      double value = 0;
+      try {
+        value = std::stod(text);
+      } catch (const std::exception&) {
+        return "must be a number, got " + text;
+      }
+      return std::isfinite(value) ? std::string() : "must be a finite number, got " + text;
+    },
+    "FINITE");
 
 //! Progress on standard error, only when it is a terminal: "label: done/total".
 void show_progress(const std::string& label, int done, int total);

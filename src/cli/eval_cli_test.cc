@@ -90,7 +90,7 @@ TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
        (no_truth / "ground_truth" / "rig.json").string() + ": missing: eval needs a capture with ground truth (synth writes one)"},
       {"eval " + capture.string() + " " + empty.string(), empty.string() + ": no reconstruction"},
       {"eval " + capture.string() + " " + (dir_ / "nowhere").string(), "nowhere: not a folder of reconstructions"},
-      {"eval " + capture.string() + " " + empty.string() + " --min-range 3 --max-range 2", "max_range_m"},
+      {"eval " + capture.string() + " " + empty.string() + " --min-range 3 --max-range 2", "--max-range: must be above --min-range"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);

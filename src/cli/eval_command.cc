@@ -96,6 +96,8 @@ void run_eval(EvalArgs& args) {
   options.visibility_tolerance_m = args.visibility_mm / 1000;
   options.sample_spacing_m = args.spacing_mm / 1000;
   options.color_max_distance_m = args.color_distance_mm / 1000;
+  // The one check across two options; validate() would name EvalOptions' fields, not the flags.
+  if (!(options.max_range_m > options.min_range_m)) throw InvalidInput("--max-range: must be above --min-range");
   options.validate();
 
   const Capture capture = Capture::open(args.capture);
@@ -226,22 +228,22 @@ void add_eval_command(CLI::App& app) {
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
   add_threads_option(cmd, o.num_threads);
   cmd->add_option("--completeness-mm", args->completeness_mm, "A true point is covered when the reconstruction is this close, mm")
-      ->check(CLI::Range(0.01, 1000.0))
+      ->check(kFiniteNumber & CLI::Range(0.01, 1000.0))
       ->capture_default_str();
   cmd->add_option("--visibility-mm", args->visibility_mm, "Depth tolerance of the test whether a camera sees a true point, mm")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(kFiniteNumber & CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--spacing-mm", args->spacing_mm, "Surfaces are sampled at about this spacing, mm")
-      ->check(CLI::Range(0.1, 1000.0))
+      ->check(kFiniteNumber & CLI::Range(0.1, 1000.0))
       ->capture_default_str();
   cmd->add_option("--color-distance-mm", args->color_distance_mm, "Compare colours only of vertices this close to the truth, mm")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(kFiniteNumber & CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--min-component-triangles", o.min_component_triangles, "Components with at least this many triangles count as large")
       ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
-  cmd->add_option("--min-range", o.min_range_m, "Cameras observe from this depth, metres")->capture_default_str();
-  cmd->add_option("--max-range", o.max_range_m, "... to this depth, metres")->capture_default_str();
+  cmd->add_option("--min-range", o.min_range_m, "Cameras observe from this depth, metres")->check(kFiniteNumber & CLI::Range(0.0, 100.0))->capture_default_str();
+  cmd->add_option("--max-range", o.max_range_m, "... to this depth, metres")->check(kFiniteNumber & CLI::Range(0.0, 100.0))->capture_default_str();
   cmd->callback([args] { run_eval(*args); });
 }
 

@@ -33,7 +33,10 @@ inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
   } else {
     range = {number(text.substr(0, colon), 0), number(text.substr(colon + 1), frame_count)};
   }
-  if (range.begin >= range.end || range.end > frame_count) {
+  if (range.end > frame_count) {
+    throw InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
+  }
+  if (range.begin >= range.end) {
     throw InvalidInput("--frames: \"" + text + "\" selects no frames of a capture with " + std::to_string(frame_count) + " frames");
   }
   return range;

@@ -12,7 +12,9 @@ namespace zipfusion {
 
 std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path.string() + ": no such file");
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw IoError(path.string() + (std::filesystem::exists(path, ec) ? ": not a regular file (a folder, device or pipe)" : ": no such file"));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(path.string() + ": cannot open for reading");
   in.seekg(0, std::ios::end);
@@ -67,10 +69,26 @@ void check_new_folder(const std::filesystem::path& dir, std::string_view option)
   if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
 }
 
+namespace {
+
+// An error's text with the hidden staging folder's path replaced by the folder the user asked for.
+std::string in_folder_asked_for(std::string text, const std::filesystem::path& staging, const std::filesystem::path& dir) {
+  const std::string from = staging.string(), to = dir.string();
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);
+  return text;
+}
+
+}  // namespace
+
 void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill) {
   namespace fs = std::filesystem;
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
-  const fs::path staging = parent / ("." + dir.filename().string() + ".partial-" + std::to_string(::getpid()));
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) on "." + string + … once inlined here.
+  std::string staging_name = ".";
+  staging_name += dir.filename().string();
+  staging_name += ".partial-";
+  staging_name += std::to_string(::getpid());
+  const fs::path staging = parent / staging_name;
   std::error_code ec;
   fs::remove_all(staging, ec);
   try {
@@ -80,7 +98,13 @@ void write_folder_atomic(const std::filesystem::path& dir, const std::function<v
     fs::rename(staging, dir);
   } catch (const fs::filesystem_error& e) {
     fs::remove_all(staging, ec);
-    throw IoError(e.path1().string() + ": " + e.code().message());
+    throw IoError(in_folder_asked_for(e.path1().string(), staging, dir) + ": cannot write (" + e.code().message() + ")");
+  } catch (const IoError& e) {
+    fs::remove_all(staging, ec);
+    throw IoError(in_folder_asked_for(e.what(), staging, dir));
+  } catch (const InvalidInput& e) {
+    fs::remove_all(staging, ec);
+    throw InvalidInput(in_folder_asked_for(e.what(), staging, dir));
   } catch (...) {
     fs::remove_all(staging, ec);
     throw;
