@@ -39,6 +39,7 @@ for mode in zipper separate; do
     name="${mode}_${filter}"
     flags=(--filter "$filter")
     [[ "$filter" == bilateral5x5 ]] && flags=(--filter bilateral --bilateral-radius 2 --bilateral-sigma-px 2)
+    rm -rf "$OUT/meshes/$name"  # a run of other frames left there would be refused (reconstruct keeps eval from mixing runs)
     "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --mode "$mode" "${flags[@]}" \
       --out "$OUT/meshes/$name" > /dev/null
     "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
@@ -46,6 +47,7 @@ for mode in zipper separate; do
 done
 for filter in bilateral none; do
   name="zipper_${filter}_lod1"
+  rm -rf "$OUT/meshes/$name"
   "$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --filter "$filter" --lod 1 \
     --out "$OUT/meshes/$name" > /dev/null
   "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"

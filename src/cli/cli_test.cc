@@ -153,6 +153,27 @@ TEST_F(Cli, CorruptFrameLeavesNoOutputFolder) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// A run into a folder holding meshes of an earlier run that it would not replace stops before
+// writing: eval reads every mesh of a folder and would measure both runs together.
+TEST_F(Cli, EarlierMeshesThatWouldStayAreRefused) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 3 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path out = dir_ / "out";
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --out " + out.string() + " --frames 0:3").exit_code, 0);
+  const auto written_at = fs::last_write_time(out / "000000.ply");
+  // The same frames again replace every mesh: allowed.
+  EXPECT_EQ(run("reconstruct " + capture.string() + " --out " + out.string() + " --frames 0:3").exit_code, 0);
+  // Fewer frames, or the other format, would leave meshes behind.
+  for (const std::string options : {"--frames 0:2", "--frames 0:3 --format obj"}) {
+    const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string() + " " + options);
+    EXPECT_EQ(r.exit_code, 2) << options;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(": a mesh of an earlier run that this one would not replace"), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out / "000000.obj"));
+  EXPECT_GE(fs::last_write_time(out / "000000.ply"), written_at);
+}
+
 TEST_F(Cli, EverySubcommandHasHelp) {
   for (const std::string sub : {"synth", "info", "reconstruct", "eval"}) {
     const CommandResult r = run(sub + " --help");

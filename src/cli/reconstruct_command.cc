@@ -13,6 +13,7 @@
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/stopwatch.h"
+#include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/pipeline/pipeline.h"
@@ -39,6 +40,18 @@ double median_of(std::vector<double> values) {
 
 void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, const fs::path& out_dir);
 
+// eval reads every NNNNNN.ply or .obj of a folder: a mesh of an earlier run that this one would
+// not replace (another frame, or the other format) would be measured with this run's. `range`:
+// the frames this run writes (empty for live input, whose frames are not known in advance).
+void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extension, const FrameRange& range) {
+  for (const fs::directory_entry& entry : fs::directory_iterator(out_dir)) {
+    const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
+    if (frame < 0 || (entry.path().extension() == extension && frame >= range.begin && frame < range.end)) continue;
+    throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would read both); "
+                       "choose an empty --out or remove it");
+  }
+}
+
 void run_reconstruct(ReconstructArgs& args) {
   if (!args.input.live && args.input.seconds > 0) throw InvalidInput("--seconds: only with --live");
   ReconstructionArgs& r = args.reconstruction;
@@ -51,6 +64,7 @@ void run_reconstruct(ReconstructArgs& args) {
   const bool out_dir_is_new = !fs::exists(out_dir, ec);
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
+  check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
   try {
     write_reconstruction(args, in, reconstruction, out_dir);
   } catch (...) {

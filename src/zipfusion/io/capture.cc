@@ -15,21 +15,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Frame index of "000042.png"-style names with one of the given extensions, or -1.
-int frame_index_of(const fs::path& file, std::initializer_list<const char*> extensions) {
-  const std::string stem = file.stem().string();
-  const std::string ext = file.extension().string();
-  bool ext_ok = false;
-  for (const char* e : extensions) ext_ok = ext_ok || ext == e;
-  if (!ext_ok || stem.size() != 6) return -1;
-  int index = 0;
-  for (char c : stem) {
-    if (c < '0' || c > '9') return -1;
-    index = index * 10 + (c - '0');
-  }
-  return index;
-}
-
 void check_size(const std::string& file, int width, int height, const Intrinsics& k, const std::string& field) {
   if (width != k.width || height != k.height) {
     throw InvalidInput(file + ": size " + std::to_string(width) + "x" + std::to_string(height) + " does not match rig.json " +
@@ -68,6 +53,21 @@ std::vector<std::string> scan_frame_folder(const fs::path& folder, std::initiali
 }
 
 }  // namespace
+
+int frame_index_of(const fs::path& file, std::initializer_list<const char*> extensions) {
+  const std::string stem = file.stem().string();
+  const std::string ext = file.extension().string();
+  bool ext_ok = false;
+  for (const char* e : extensions) ext_ok = ext_ok || ext == e;
+  if (!ext_ok || stem.size() != 6) return -1;
+  int index = 0;
+  for (char c : stem) {
+    if (c < '0' || c > '9') return -1;
+    index = index * 10 + (c - '0');
+  }
+  return index;
+}
+
 
 std::string frame_file_name(int frame, const std::string& extension) {
   char name[32];

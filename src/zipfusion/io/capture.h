@@ -10,6 +10,7 @@
 //! Thread safety: a Capture is immutable after open(); load_* may be called concurrently.
 
 #include <filesystem>
+#include <initializer_list>
 #include <optional>
 #include <string>
 #include <vector>
@@ -97,5 +98,7 @@ inline std::uint16_t undistorted_depth(const std::uint16_t* recorded, const int*
 
 //! Frame file name: 6-digit zero-padded index plus extension ("000042.png").
 std::string frame_file_name(int frame, const std::string& extension);
+//! The frame index of such a name with one of `extensions` (".png"), or −1 for any other name.
+int frame_index_of(const std::filesystem::path& file, std::initializer_list<const char*> extensions);
 
 }  // namespace zipfusion
