@@ -95,6 +95,21 @@ TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
   }
 }
 
+// A binary file given as INDEX.txt is quoted with its bytes escaped and cut short, not printed raw.
+TEST(FakenectFormat, BinaryIndexIsQuotedPrintably) {
+  std::string binary = "d-1.0-12.pgm\n\x01\x89PNG";
+  binary += std::string(200, '\xff');
+  try {
+    parse_fakenect_index(binary, "dump/INDEX.txt");
+    FAIL() << "no error";
+  } catch (const InvalidInput& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("dump/INDEX.txt: line 2: \"\\x01\\x89PNG\\xff"), std::string::npos) << message;
+    EXPECT_NE(message.find("...\" is not a fakenect file name"), std::string::npos) << message;
+    for (const char c : message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << message;
+  }
+}
+
 TEST(FakenectFormat, DepthAndColourRoundTripBitExactly) {
   const RawDepthImage raw = ramp_raw(3);
   const std::vector<std::uint8_t> bytes = encode_fakenect_depth(raw);
