@@ -56,7 +56,12 @@ bool loopback_host(const std::string& host) {
   } else if (std::count(name.begin(), name.end(), ':') == 1) {
     name = name.substr(0, name.find(':'));
   }
-  return name == "localhost" || name == "::1" || name.rfind("127.", 0) == 0;
+  if (name == "localhost") return true;
+  // An address literal only: a name such as "127.attacker.example" is a DNS name that an attacker
+  // can point at this machine, which is what the check is for.
+  boost::system::error_code error;
+  const net::ip::address address = net::ip::make_address(name, error);
+  return !error && address.is_loopback();
 }
 
 const char* content_type(const std::filesystem::path& file) {

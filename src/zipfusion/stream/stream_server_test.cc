@@ -123,6 +123,10 @@ TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   EXPECT_EQ(raw_request(server.port(), "GET ?x HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"), "HTTP/1.1 400 Bad Request");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nOrigin: http://evil.example\r\n\r\n"), "HTTP/1.1 403 Forbidden");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: rebound.example:8080\r\n\r\n"), "HTTP/1.1 403 Forbidden");
+  // A DNS name that merely starts like a loopback address is a name, not the loopback.
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.attacker.example:8080\r\n\r\n"), "HTTP/1.1 403 Forbidden");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.1.2.3\r\n\r\n"), "HTTP/1.1 200 OK");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: [::1]:8080\r\n\r\n"), "HTTP/1.1 200 OK");
   EXPECT_EQ(http_get(server.port(), "/").status, 200);
   Client client(server.port());
   bool binary = true;
