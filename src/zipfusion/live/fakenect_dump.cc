@@ -16,6 +16,8 @@ namespace {
 
 // A line of a text file as an error may quote it: at most 80 bytes, those that are not printable
 // ASCII as \xNN (a binary file passed as INDEX.txt must not print raw bytes to the terminal).
+constexpr double kLatestFakenectTimeS = 1e10;
+
 std::string printable_excerpt(const std::string& line) {
   constexpr size_t kMostBytes = 80;
   std::string out;
@@ -95,7 +97,9 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     if (ok) {
       entry.type = line[0];
       entry.time_s = std::strtod(line.c_str() + 2, &cursor);
-      ok = cursor != line.c_str() + 2 && *cursor == '-';
+      // Seconds since 1970 up to the year 2286: strtod also reads "nan", "inf" and 1e300, at which
+      // half a frame period no longer moves a time and grouping the frames never ends.
+      ok = cursor != line.c_str() + 2 && *cursor == '-' && entry.time_s >= 0 && entry.time_s <= kLatestFakenectTimeS;
     }
     if (ok) {
       const char* digits = cursor + 1;
@@ -105,7 +109,7 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     }
     if (!ok) {
       throw InvalidInput(source + ": line " + std::to_string(line_number) + ": \"" + printable_excerpt(line) +
-                         "\" is not a fakenect file name TYPE-SECONDS-TIMESTAMP (e.g. d-1700000000.000000-0.pgm)");
+                         "\" is not a fakenect file name TYPE-SECONDS-TIMESTAMP, seconds in [0, 1e10] (e.g. d-1700000000.000000-0.pgm)");
     }
     entries.push_back(std::move(entry));
   }

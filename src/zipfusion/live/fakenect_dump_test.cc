@@ -85,7 +85,10 @@ TEST(FakenectFormat, IndexParsesTypeTimeAndTimestamp) {
 
 TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
   for (const char* bad : {"d-1.0-12.pgm\nnot-a-name\n", "d-1.0-12.pgm\nd-x-12.pgm\n", "d-1.0-12.pgm\nd-1.0-.pgm\n",
-                          "d-1.0-12.pgm\nd-1.0-99999999999.pgm\n", "d-1.0-12.pgm\nd-1.0-12/../x.pgm\n"}) {
+                          "d-1.0-12.pgm\nd-1.0-99999999999.pgm\n", "d-1.0-12.pgm\nd-1.0-12/../x.pgm\n",
+                          // Times that are no recording's: grouping frames at them never ended.
+                          "d-1.0-12.pgm\nd-nan-12.pgm\n", "d-1.0-12.pgm\nd-inf-12.pgm\n", "d-1.0-12.pgm\nd-1e300-12.pgm\n",
+                          "d-1.0-12.pgm\nd--5.0-12.pgm\n"}) {
     try {
       parse_fakenect_index(bad, "dump/INDEX.txt");
       ADD_FAILURE() << bad;
