@@ -1,6 +1,7 @@
 #include "zipfusion/io/capture.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -247,6 +248,31 @@ TEST_F(SmallCapture, DistortedDepthIsUndistorted) {
   EXPECT_EQ(map.front(), -1);
   EXPECT_EQ(map.back(), -1);
   EXPECT_EQ(map[static_cast<size_t>(kH / 2) * kW + kW / 2], (kH / 2) * kW + kW / 2);
+}
+
+// An output path that is a link is written through, and a pipe or folder is never replaced.
+TEST(WriteFileAtomic, WritesThroughLinksAndNeverOverSpecialFiles) {
+  const fs::path dir = fs::temp_directory_path() / "zf_write_file_atomic_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "folder");
+  write_file_atomic(dir / "target.json", std::string_view("old"));
+  fs::create_symlink("target.json", dir / "link.json");
+  write_file_atomic(dir / "link.json", std::string_view("new"));
+  EXPECT_TRUE(fs::is_symlink(dir / "link.json"));
+  const std::vector<std::uint8_t> written = read_file_bytes(dir / "target.json");
+  EXPECT_EQ(std::string(written.begin(), written.end()), "new");
+  ASSERT_EQ(::mkfifo((dir / "pipe.json").c_str(), 0600), 0);
+  for (const char* special : {"pipe.json", "folder"}) {
+    try {
+      write_file_atomic(dir / special, std::string_view("x"));
+      ADD_FAILURE() << special << " was written";
+    } catch (const IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(": not a regular file (a folder, device or pipe), not replaced"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(fs::is_fifo(dir / "pipe.json"));
+  EXPECT_TRUE(fs::is_directory(dir / "folder"));
+  fs::remove_all(dir);
 }
 
 // Every capture in ../shared/data follows the format and loads.

@@ -28,7 +28,19 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path) {
   return bytes;
 }
 
-void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+void write_file_atomic(const std::filesystem::path& given_path, std::span<const std::uint8_t> bytes) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  // Written through a symbolic link (the rename would replace the link itself), and never over a
+  // device, pipe or folder (the rename replaced /dev/full, as root, with a regular file).
+  fs::path path = given_path;
+  if (fs::is_symlink(fs::symlink_status(given_path, ec))) {
+    path = fs::weakly_canonical(given_path, ec);
+    if (ec) throw IoError(given_path.string() + ": cannot follow the link: " + ec.message());
+  }
+  if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) {
+    throw IoError(given_path.string() + ": not a regular file (a folder, device or pipe), not replaced");
+  }
   // A unique suffix keeps two writers of the same file from sharing a temporary.
   thread_local std::mt19937_64 rng{std::random_device{}()};
   std::filesystem::path tmp = path;
@@ -45,7 +57,6 @@ void write_file_atomic(const std::filesystem::path& path, std::span<const std::u
       throw IoError(path.string() + ": write failed");
     }
   }
-  std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
     std::error_code ignored;
