@@ -3,6 +3,7 @@
 
 #include <glob.h>
 
+#include <charconv>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -44,8 +45,11 @@ std::vector<std::string> glob_files(const std::string& pattern) {
 
 BoardOptions parse_board(const std::string& text, double square_m) {
   int columns = 0, rows = 0;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%d%c", &columns, &rows, &tail) != 2) {
+  const char* end = text.data() + text.size();
+  const auto [after_columns, columns_error] = std::from_chars(text.data(), end, columns);
+  const bool has_x = columns_error == std::errc() && after_columns != end && *after_columns == 'x';
+  const auto [after_rows, rows_error] = has_x ? std::from_chars(after_columns + 1, end, rows) : std::from_chars_result{end, std::errc::invalid_argument};
+  if (!has_x || rows_error != std::errc() || after_rows != end) {
     throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + text + "\"");
   }
   BoardOptions board{.inner_columns = columns, .inner_rows = rows, .square_m = square_m};
@@ -93,6 +97,7 @@ void run_intrinsics(const IntrinsicsArgs& args) {
     std::cout << line;
   }
   for (const std::string& name : result.rejected) std::cout << "rejected (error far above the other views): " << name << "\n";
+  for (const std::string& name : result.duplicates) std::cout << "left out (the same board pose as an earlier view): " << name << "\n";
   const Intrinsics& k = result.intrinsics;
   std::printf("fx %.3f  fy %.3f  cx %.3f  cy %.3f  k1 %.5f  k2 %.5f; overall RMS %.3f px over %zu views\n", k.fx, k.fy, k.cx, k.cy,
               k.distortion[0], k.distortion[1], result.rms_px,
@@ -102,7 +107,8 @@ void run_intrinsics(const IntrinsicsArgs& args) {
                               {"rms_px", result.rms_px},
                               {"board", {{"inner_columns", board.inner_columns}, {"inner_rows", board.inner_rows}, {"square_m", board.square_m}}},
                               {"views", views},
-                              {"rejected", result.rejected}};
+                              {"rejected", result.rejected},
+                              {"duplicates", result.duplicates}};
   write_file_atomic(args.out, out.dump(2) + "\n");
   std::cout << "wrote " << args.out << "\n";
 }

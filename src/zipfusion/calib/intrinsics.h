@@ -50,6 +50,7 @@ struct IntrinsicResult {
   double rms_px = 0;         // overall RMS reprojection error of the used views, pixels
   std::vector<ViewReport> views;
   std::vector<std::string> rejected;  // names of the views rejected for their error
+  std::vector<std::string> duplicates;  // names of the views left out as copies of an earlier one (corners within 1 px)
 };
 
 //! Calibrates from corner sets (one per view, nullopt where the board was not found), all from
