@@ -54,6 +54,35 @@ TEST_F(RegisterCli, WritesARefinedRigAndReportsEveryCamera) {
   EXPECT_TRUE(cap.ground_truth_rig()->poses_trusted);
 }
 
+// Poses too far off for any two cameras' depth to meet: nothing registered, so an error and no
+// rig (it used to write one marked trusted, which reconstruct then never refined).
+TEST_F(RegisterCli, PosesTooFarOffAreAnErrorNotATrustedRig) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 4 --resolution 320x240 --miscalibrate 20,0.3").exit_code, 0);
+  const std::string out = (dir_ / "refined.json").string();
+  const CommandResult r = run("register " + capture + " --out " + out);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("no camera's depth meets another's within the registration's reach (150 mm, 50 correspondences a pair)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// One camera far from the others overlaps none: the rig is written with the others refined, but
+// not marked trusted, so that reconstruct refines it again.
+TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 4 --resolution 320x240 --noise none").exit_code, 0);
+  Rig rig = read_rig(fs::path(capture) / "rig.json");
+  rig.cameras[3].world_from_depth.translation() += Eigen::Vector3d(0, 0, 5);  // five metres up
+  write_rig(fs::path(capture) / "rig.json", rig);
+  const std::string out = (dir_ / "refined.json").string();
+  const CommandResult r = run("register " + capture + " --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("overlaps no camera: pose kept"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("1 camera(s) overlap no other"), std::string::npos) << r.out;
+  EXPECT_FALSE(read_rig(out).poses_trusted);
+}
+
 TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 2 --noise none").exit_code, 0);

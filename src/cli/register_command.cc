@@ -53,9 +53,23 @@ void run_register(RegisterArgs& args) {
   const RegistrationResult result = register_rig(start, depth, args.options);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
+  // A camera that overlaps none keeps its starting pose. When that is every camera nothing was
+  // registered (poses too far off for the depth to meet, or no depth): an error, not a rig that
+  // says its poses are trusted. When it is some, the rig is written but not marked trusted, so that
+  // reconstruct's --register auto refines it again.
+  int unmatched = 0;
+  for (size_t c = 1; c < start.cameras.size(); ++c) unmatched += result.correspondences_after[c] == 0;
+  if (start.cameras.size() > 1 && unmatched == static_cast<int>(start.cameras.size()) - 1) {
+    char reach[32];
+    std::snprintf(reach, sizeof reach, "%.0f mm", args.options.start_distance_m * 1000);
+    throw InvalidInput(args.capture + ": no camera's depth meets another's within the registration's reach (" + reach + ", " +
+                       std::to_string(args.options.min_correspondences) +
+                       " correspondences a pair): the starting poses are too far off, the depth too small for --coarsest-level " +
+                       std::to_string(args.options.coarsest_level) + ", or the frames have no overlapping depth; nothing written");
+  }
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
-  refined.poses_trusted = true;
+  refined.poses_trusted = unmatched == 0;
   write_rig(args.out, refined);
 
   std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),
@@ -67,6 +81,10 @@ void run_register(RegisterArgs& args) {
     std::printf("%-10s %12.3f %12.1f %14.2f %14.2f %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
                 result.rmse_before_m[c] * 1000, result.rmse_after_m[c] * 1000, result.correspondences_after[c],
                 c > 0 && result.correspondences_after[c] == 0 ? "  (overlaps no camera: pose kept)" : "");
+  }
+  if (unmatched > 0) {
+    std::printf("%d camera(s) overlap no other: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched,
+                args.out.c_str());
   }
   if (const auto& truth = capture.ground_truth_rig()) {
     const std::vector<Rigid3d> true_poses = world_from_depth_poses(*truth);
