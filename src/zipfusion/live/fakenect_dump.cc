@@ -10,6 +10,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/live/kinect_disparity.h"
 
 namespace zipfusion {
 namespace {
@@ -46,7 +47,7 @@ std::vector<std::uint8_t> with_header(const std::string& header, const void* dat
 
 // The payload of a one-line-header file after checking the header's magic and size; throws
 // InvalidInput naming `source`.
-std::span<const std::uint8_t> payload(std::span<const std::uint8_t> bytes, const char* magic, size_t bytes_per_pixel,
+std::span<const std::uint8_t> payload(std::span<const std::uint8_t> bytes, const char* magic, size_t bytes_per_pixel, int expected_maxval,
                                       const std::string& source) {
   size_t newline = 0;
   const size_t max_header = std::min<size_t>(bytes.size(), 64);
@@ -57,7 +58,10 @@ std::span<const std::uint8_t> payload(std::span<const std::uint8_t> bytes, const
   int width = 0, height = 0, maxval = 0;
   char tail = 0;
   if (std::sscanf(header.c_str(), "%2s %d %d %d %c", kind, &width, &height, &maxval, &tail) != 4 || std::strcmp(kind, magic) != 0) {
-    throw InvalidInput(source + ": header: expected \"" + magic + " 640 480 MAXVAL\", got \"" + header + "\"");
+    throw InvalidInput(source + ": header: expected \"" + magic + " 640 480 MAXVAL\", got \"" + printable_excerpt(header) + "\"");
+  }
+  if (maxval != expected_maxval) {
+    throw InvalidInput(source + ": header: MAXVAL is " + std::to_string(maxval) + ", fakenect writes " + std::to_string(expected_maxval));
   }
   if (width != kFakenectWidth || height != kFakenectHeight) {
     throw InvalidInput(source + ": header: size " + std::to_string(width) + "x" + std::to_string(height) +
@@ -140,14 +144,23 @@ std::vector<std::uint8_t> encode_fakenect_rgb(const ColorImage& color) {
 }
 
 RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source) {
-  const std::span<const std::uint8_t> data = payload(bytes, "P5", 2, source);
+  const std::span<const std::uint8_t> data = payload(bytes, "P5", 2, 65535, source);
   RawDepthImage raw(kFakenectWidth, kFakenectHeight);
-  for (size_t i = 0; i < raw.data.size(); ++i) raw.data[i] = static_cast<std::uint16_t>(data[2 * i] | (data[2 * i + 1] << 8));
+  std::uint16_t largest = 0;
+  for (size_t i = 0; i < raw.data.size(); ++i) {
+    raw.data[i] = static_cast<std::uint16_t>(data[2 * i] | (data[2 * i + 1] << 8));
+    largest = std::max(largest, raw.data[i]);
+  }
+  // The Kinect's raw depth is 11-bit (2047: no measurement); more is another file, most likely a
+  // 16-bit PGM in the standard big-endian order rather than fakenect's host order.
+  if (largest > kKinectRawNoValue) {
+    throw InvalidInput(source + ": pixels: value " + std::to_string(largest) + " above 2047 is not 11-bit Kinect depth (a big-endian PGM?)");
+  }
   return raw;
 }
 
 ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source) {
-  const std::span<const std::uint8_t> data = payload(bytes, "P6", 3, source);
+  const std::span<const std::uint8_t> data = payload(bytes, "P6", 3, 255, source);
   ColorImage color(kFakenectWidth, kFakenectHeight);
   std::memcpy(color.data.data(), data.data(), data.size());
   return color;

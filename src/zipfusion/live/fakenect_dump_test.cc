@@ -131,6 +131,26 @@ TEST(FakenectFormat, DepthAndColourRoundTripBitExactly) {
   EXPECT_EQ(decode_fakenect_rgb(rgb_bytes, "r.ppm"), rgb);
 }
 
+// A PGM that is no fakenect depth frame: another MAXVAL, or 16-bit values past the Kinect's 11 bits
+// (a big-endian PGM read in fakenect's little-endian order) were recorded without a word.
+TEST(FakenectFormat, DepthThatIsNotElevenBitIsAnError) {
+  std::vector<std::uint8_t> bytes = encode_fakenect_depth(ramp_raw(0));
+  std::vector<std::uint8_t> other_maxval = bytes;
+  std::copy_n("P5 640 480 00000", 16, other_maxval.begin());
+  const size_t header = std::string("P5 640 480 65535\n").size();
+  std::swap(bytes[header + 2], bytes[header + 3]);  // pixel 1 (401) byte-swapped: 37121
+  const std::pair<const std::vector<std::uint8_t>*, const char*> cases[] = {{&other_maxval, "d.pgm: header: MAXVAL is 0, fakenect writes 65535"},
+                                                                            {&bytes, "d.pgm: pixels: value 37121 above 2047"}};
+  for (const auto& [file, expected] : cases) {
+    try {
+      decode_fakenect_depth(*file, "d.pgm");
+      ADD_FAILURE() << expected;
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(FakenectFormat, TruncatedOrWrongFilesAreErrorsNamingThem) {
   std::vector<std::uint8_t> bytes = encode_fakenect_depth(ramp_raw(0));
   bytes.pop_back();
