@@ -7,7 +7,7 @@ packages=(
   build-essential cmake pkg-config
   libeigen3-dev                      # small fixed-size maths
   libopencv-dev                      # image encoding and ops, calibration
-  libpng-dev libjpeg62-turbo-dev     # PNG and JPEG decoding (every problem an error, nothing printed)
+  libpng-dev libjpeg-dev             # PNG and JPEG decoding (every problem an error, nothing printed)
   nlohmann-json3-dev                 # rig.json, stats.json
   libcli11-dev                       # command line
   libcgal-dev                        # 2-D Delaunay triangulation of seams

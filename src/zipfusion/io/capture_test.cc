@@ -333,6 +333,27 @@ TEST(ColorImage, CorruptJpegsAndPngsAreErrorsAndPrintNothing) {
   }
 }
 
+// Warnings about a JPEG's headers leave its pixels intact and pass: a JFIF revision libjpeg does
+// not know (2.01), and stray bytes before a marker, as some MJPEG cameras write.
+TEST(ColorImage, JpegHeaderWarningsPass) {
+  cv::Mat bgr(24, 32, CV_8UC3);
+  cv::randu(bgr, 0, 255);
+  std::vector<std::uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg));
+  ASSERT_TRUE(jpeg[2] == 0xFF && jpeg[3] == 0xE0 && jpeg[6] == 'J');  // SOI, then the JFIF APP0 segment
+  const ColorImage reference = decode_color_image(jpeg, "reference.jpg");
+  std::vector<std::uint8_t> revision = jpeg, stray = jpeg;
+  revision[11] = 2;  // JFIF major version: 2.01
+  const size_t after_app0 = 4 + (static_cast<size_t>(jpeg[4]) << 8 | jpeg[5]);
+  stray.insert(stray.begin() + static_cast<std::ptrdiff_t>(after_app0), {0x00, 0x00});
+  for (const auto* bytes : {&revision, &stray}) {
+    ::testing::internal::CaptureStderr();
+    const ColorImage decoded = decode_color_image(*bytes, "warned.jpg");
+    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+    EXPECT_EQ(decoded.data, reference.data);
+  }
+}
+
 // The decoders' pixels are those OpenCV decodes from the same files (the same libraries).
 TEST(ColorImage, JpegAndDepthPngPixelsMatchOpenCv) {
   cv::Mat bgr(30, 40, CV_8UC3);

@@ -1,6 +1,7 @@
 #include "zipfusion/io/image_io.h"
 
 #include <jpeglib.h>
+#include <jerror.h>  // after jpeglib.h: the message codes (JWRN_…)
 #include <png.h>
 
 #include <csetjmp>
@@ -39,8 +40,12 @@ constexpr std::uint64_t kMostImagePixels = std::uint64_t{1} << 26;
   throw InvalidInput(source + ": cannot decode image (corrupt or truncated): " + problem);
 }
 
+bool plausible_image_size(std::uint64_t width, std::uint64_t height) {
+  return width > 0 && height > 0 && width <= kMostImageSide && height <= kMostImageSide && width * height <= kMostImagePixels;
+}
+
 void check_image_size(std::uint64_t width, std::uint64_t height, const std::string& source) {
-  if (width == 0 || height == 0 || width > kMostImageSide || height > kMostImageSide || width * height > kMostImagePixels) {
+  if (!plausible_image_size(width, height)) {
     throw InvalidInput(source + ": image size: " + std::to_string(width) + "x" + std::to_string(height) + " is not a plausible camera image");
   }
 }
@@ -90,16 +95,17 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
   }
   // What the file holds, when it is not what was asked for (set inside, thrown outside).
   int wrong_bits = 0, wrong_channels = 0;
+  bool too_large = false;
   // setjmp alone in the condition, as C allows it.
   if (setjmp(png_jmpbuf(png)) == 0) {
     png_set_read_fn(png, &input, png_read_bytes);
-    png_set_user_limits(png, kMostImageSide, kMostImageSide);
     png_read_info(png, info);
     const int bit_depth = png_get_bit_depth(png, info), color_type = png_get_color_type(png, info);
     out.width = png_get_image_width(png, info);
     out.height = png_get_image_height(png, info);
-    if (static_cast<std::uint64_t>(out.width) * out.height > kMostImagePixels) png_error(png, "image too large");
-    if (depth) {
+    if (!plausible_image_size(out.width, out.height)) {
+      too_large = true;
+    } else if (depth) {
       if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY) {
         wrong_bits = bit_depth;
         wrong_channels = png_get_channels(png, info);
@@ -114,7 +120,7 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
       png_set_strip_alpha(png);
       png_set_gray_to_rgb(png);
     }
-    if (wrong_bits == 0) {
+    if (wrong_bits == 0 && !too_large) {
       png_set_interlace_handling(png);
       png_read_update_info(png, info);
       const size_t row_bytes = png_get_rowbytes(png, info);
@@ -128,6 +134,7 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
   }
   png_destroy_read_struct(&png, &info, nullptr);
   if (input.error != nullptr) throw_undecodable(source, input.error);
+  if (too_large) check_image_size(out.width, out.height, source);
   if (wrong_bits != 0) {
     throw InvalidInput(source + ": bit depth: " + (depth ? "depth PNG must be 16-bit single-channel" : "colour must be 8-bit") + ", got " +
                        std::to_string(wrong_bits) + "-bit with " + std::to_string(wrong_channels) + " channel(s)");
@@ -149,8 +156,23 @@ struct JpegErrors {
   std::longjmp(errors->jump, 1);
 }
 
+// A warning that the pixels are not what the camera recorded (the data ends early or is corrupt,
+// and libjpeg fills in): an error. Warnings about the headers (a JFIF revision it does not know,
+// bytes skipped before a marker, as some MJPEG cameras write) leave the pixels intact and pass.
 void jpeg_on_message(j_common_ptr jpeg, int level) {
-  if (level < 0) jpeg_on_error(jpeg);  // a warning: the pixels are not what the camera recorded
+  if (level >= 0) return;
+  switch (jpeg->err->msg_code) {
+    case JWRN_JPEG_EOF:
+    case JWRN_HIT_MARKER:
+    case JWRN_MUST_RESYNC:
+    case JWRN_HUFF_BAD_CODE:
+    case JWRN_ARITH_BAD_CODE:
+    case JWRN_BOGUS_PROGRESSION:
+    case JWRN_NOT_SEQUENTIAL:
+      jpeg_on_error(jpeg);
+    default:
+      return;
+  }
 }
 
 void jpeg_no_output(j_common_ptr) {}
@@ -172,10 +194,10 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   jpeg_mem_src(&jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&jpeg, TRUE);
   jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
-  if (static_cast<std::uint64_t>(jpeg.image_width) * jpeg.image_height > kMostImagePixels || jpeg.image_width > kMostImageSide ||
-      jpeg.image_height > kMostImageSide) {
+  const bool cmyk = jpeg.jpeg_color_space == JCS_CMYK || jpeg.jpeg_color_space == JCS_YCCK;
+  if (!plausible_image_size(jpeg.image_width, jpeg.image_height)) {
     too_large = true;
-  } else {
+  } else if (!cmyk) {
     jpeg_start_decompress(&jpeg);
     color = ColorImage(static_cast<int>(jpeg.output_width), static_cast<int>(jpeg.output_height));
     static_assert(sizeof(Rgb8) == 3);
@@ -188,6 +210,8 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   const std::uint64_t width = jpeg.image_width, height = jpeg.image_height;
   jpeg_destroy_decompress(&jpeg);
   if (too_large) check_image_size(width, height, source);
+  // Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
+  if (cmyk) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
 }
 
 }  // namespace
