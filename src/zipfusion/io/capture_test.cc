@@ -261,6 +261,11 @@ TEST(WriteFileAtomic, WritesThroughLinksAndNeverOverSpecialFiles) {
   EXPECT_TRUE(fs::is_symlink(dir / "link.json"));
   const std::vector<std::uint8_t> written = read_file_bytes(dir / "target.json");
   EXPECT_EQ(std::string(written.begin(), written.end()), "new");
+  // A link whose target does not exist yet creates the target.
+  fs::create_symlink("later.json", dir / "dangling.json");
+  write_file_atomic(dir / "dangling.json", std::string_view("made"));
+  EXPECT_TRUE(fs::is_symlink(dir / "dangling.json"));
+  EXPECT_TRUE(fs::is_regular_file(dir / "later.json"));
   ASSERT_EQ(::mkfifo((dir / "pipe.json").c_str(), 0600), 0);
   for (const char* special : {"pipe.json", "folder"}) {
     try {

@@ -33,10 +33,12 @@ void write_file_atomic(const std::filesystem::path& given_path, std::span<const 
   std::error_code ec;
   // Written through a symbolic link (the rename would replace the link itself), and never over a
   // device, pipe or folder (the rename replaced /dev/full, as root, with a regular file).
+  // Followed link by link (weakly_canonical stops at a link whose target does not exist yet).
   fs::path path = given_path;
-  if (fs::is_symlink(fs::symlink_status(given_path, ec))) {
-    path = fs::weakly_canonical(given_path, ec);
-    if (ec) throw IoError(given_path.string() + ": cannot follow the link: " + ec.message());
+  for (int hops = 0; fs::is_symlink(fs::symlink_status(path, ec)); ++hops) {
+    const fs::path target = fs::read_symlink(path, ec);
+    if (ec || hops == 40) throw IoError(given_path.string() + ": cannot follow the link" + (ec ? ": " + ec.message() : std::string(" (a loop?)")));
+    path = target.is_absolute() ? target : path.parent_path() / target;
   }
   if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) {
     throw IoError(given_path.string() + ": not a regular file (a folder, device or pipe), not replaced");

@@ -1,5 +1,6 @@
 #include "zipfusion/io/rig.h"
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -100,8 +101,11 @@ Intrinsics parse_intrinsics(const Fields& f) {
   k.height = f.integer("height", 1);
   // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175
   // degrees, past any pinhole lens. The principal point within an image's size of the image.
-  k.fx = f.plausible("fx", 0.02 * k.width, 100.0 * k.width, "pixels for an image " + std::to_string(k.width) + " pixels wide");
-  k.fy = f.plausible("fy", 0.02 * k.height, 100.0 * k.height, "pixels for an image " + std::to_string(k.height) + " pixels high");
+  // Bounded by the larger side: a strip sensor (synth allows 4096×24) has one focal length for both.
+  const double side = std::max(k.width, k.height);
+  const std::string for_image = "pixels for an image of " + std::to_string(k.width) + "x" + std::to_string(k.height);
+  k.fx = f.plausible("fx", 0.02 * side, 100.0 * side, for_image);
+  k.fy = f.plausible("fy", 0.02 * side, 100.0 * side, for_image);
   k.cx = f.number("cx");
   k.cy = f.number("cy");
   if (!(k.cx >= -k.width && k.cx <= 2.0 * k.width)) f.fail(f.field("cx"), "must be in [-width, 2 width] pixels, got " + f.required("cx").dump());

@@ -153,7 +153,7 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"tiny fps", [](json& j) { j["fps"] = 1e-300; }, "fps: must be in [0.001, 1000] frames per second"},
       {"huge depth unit", [](json& j) { j["depth_unit_m"] = 1e30; }, "depth_unit_m: must be in [1e-06, 1] metres"},
       {"tiny focal", [](json& j) { j["cameras"][1]["depth_intrinsics"]["fx"] = 1e-300; },
-       "cameras[1].depth_intrinsics.fx: must be in [6.4, 32000] pixels for an image 320 pixels wide"},
+       "cameras[1].depth_intrinsics.fx: must be in [6.4, 32000] pixels for an image of 320x240"},
       {"huge focal", [](json& j) { j["cameras"][0]["color_intrinsics"]["fy"] = 1e300; }, "cameras[0].color_intrinsics.fy: must be in"},
       {"far principal point", [](json& j) { j["cameras"][0]["depth_intrinsics"]["cx"] = 5000; }, "cameras[0].depth_intrinsics.cx: must be in"},
       {"far camera", [](json& j) { j["cameras"][1]["world_from_depth"][0][3] = 1e300; },
