@@ -3,6 +3,7 @@
 
 #include <glob.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cstdio>
 #include <iostream>
@@ -90,10 +91,12 @@ void run_intrinsics(const IntrinsicsArgs& args) {
   nlohmann::json views = nlohmann::json::array();
   std::cout << "view                                   board  used  RMS px\n";
   for (const ViewReport& v : result.views) {
-    views.push_back({{"file", v.name}, {"board_found", v.board_found}, {"used", v.used}, {"rms_px", v.rms_px}});
+    const bool duplicate = std::find(result.duplicates.begin(), result.duplicates.end(), v.name) != result.duplicates.end();
+    views.push_back({{"file", v.name}, {"board_found", v.board_found}, {"used", v.used}, {"duplicate", duplicate}, {"rms_px", v.rms_px}});
     char line[512];
+    // A copy of an earlier view was not calibrated: it has no error of its own.
     std::snprintf(line, sizeof line, "%-38s %-6s %-5s %s\n", v.name.c_str(), v.board_found ? "yes" : "no",
-                  v.used ? "yes" : "no", v.board_found ? std::to_string(v.rms_px).substr(0, 5).c_str() : "-");
+                  v.used ? "yes" : "no", v.board_found && !duplicate ? std::to_string(v.rms_px).substr(0, 5).c_str() : "-");
     std::cout << line;
   }
   for (const std::string& name : result.rejected) std::cout << "rejected (error far above the other views): " << name << "\n";

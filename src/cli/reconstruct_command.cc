@@ -44,12 +44,14 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
 // not replace (another frame, or the other format) would be measured with this run's. `range`:
 // the frames this run writes (empty for live input, whose frames are not known in advance).
 void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extension, const FrameRange& range) {
-  for (const fs::directory_entry& entry : fs::directory_iterator(out_dir)) {
+  std::error_code ec;
+  for (const fs::directory_entry& entry : fs::directory_iterator(out_dir, ec)) {
     const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
     if (frame < 0 || (entry.path().extension() == extension && frame >= range.begin && frame < range.end)) continue;
     throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would read both); "
                        "choose an empty --out or remove it");
   }
+  if (ec) throw IoError(out_dir.string() + ": cannot list the output folder: " + ec.message());
 }
 
 void run_reconstruct(ReconstructArgs& args) {
@@ -57,15 +59,17 @@ void run_reconstruct(ReconstructArgs& args) {
   ReconstructionArgs& r = args.reconstruction;
   Input in;
   open_input(args.input, r.rig, r.register_mode, in);
-  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
 
+  // The output folder is checked before the reconstruction is set up (--register once registers
+  // the rig first, which takes seconds).
   const fs::path out_dir = args.out;
   std::error_code ec;
   const bool out_dir_is_new = !fs::exists(out_dir, ec);
+  if (!out_dir_is_new) check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
-  check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
   try {
+    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
     write_reconstruction(args, in, reconstruction, out_dir);
   } catch (...) {
     // A run that fails before writing anything (a corrupt first frame) leaves no empty folder.
