@@ -58,14 +58,14 @@ void run_register(RegisterArgs& args) {
   // says its poses are trusted. When it is some, the rig is written but not marked trusted, so that
   // reconstruct's --register auto refines it again.
   int unmatched = 0;
-  for (size_t c = 1; c < start.cameras.size(); ++c) unmatched += result.correspondences_after[c] == 0;
+  for (size_t c = 1; c < start.cameras.size(); ++c) unmatched += !result.joined_to_first[c];
   if (start.cameras.size() > 1 && unmatched == static_cast<int>(start.cameras.size()) - 1) {
-    char reach[32];
-    std::snprintf(reach, sizeof reach, "%.0f mm", args.options.start_distance_m * 1000);
-    throw InvalidInput(args.capture + ": no camera's depth meets another's within the registration's reach (" + reach + ", " +
-                       std::to_string(args.options.min_correspondences) +
-                       " correspondences a pair): the starting poses are too far off, the depth too small for --coarsest-level " +
-                       std::to_string(args.options.coarsest_level) + ", or the frames have no overlapping depth; nothing written");
+    char reach[64];
+    std::snprintf(reach, sizeof reach, "%.0f mm at the finest level, %d correspondences a pair", args.options.end_distance_m * 1000,
+                  args.options.min_correspondences);
+    throw InvalidInput(args.capture + ": no camera's depth joins " + start.cameras[0].name + "'s within the registration's reach (" + reach +
+                       "): the starting poses are too far off, the depth too small for --coarsest-level " + std::to_string(args.options.coarsest_level) +
+                       ", or the frames have no overlapping depth; nothing written");
   }
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
@@ -80,10 +80,10 @@ void run_register(RegisterArgs& args) {
     const double moved_mm = (result.world_from_depth[c].translation() - start.cameras[c].world_from_depth.translation()).norm() * 1000;
     std::printf("%-10s %12.3f %12.1f %14.2f %14.2f %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
                 result.rmse_before_m[c] * 1000, result.rmse_after_m[c] * 1000, result.correspondences_after[c],
-                c > 0 && result.correspondences_after[c] == 0 ? "  (overlaps no camera: pose kept)" : "");
+                c > 0 && !result.joined_to_first[c] ? "  (not joined to the first camera through any overlap: not registered to it)" : "");
   }
   if (unmatched > 0) {
-    std::printf("%d camera(s) overlap no other: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched,
+    std::printf("%d camera(s) not joined to the first: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched,
                 args.out.c_str());
   }
   if (const auto& truth = capture.ground_truth_rig()) {

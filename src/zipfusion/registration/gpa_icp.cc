@@ -262,6 +262,7 @@ Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>&
 struct Accumulated {
   std::vector<double> sum_sq;  // per camera
   std::vector<int> count;
+  std::vector<char> pair_matched;  // [a · cameras + b], a < b: the pair had enough correspondences in a frame
 };
 
 // All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
@@ -269,7 +270,7 @@ struct Accumulated {
 Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const PairWeighting& weighting, const RegistrationOptions& o, Eigen::MatrixXd* h,
                        Eigen::VectorXd* g, bool trimmed) {
   const int cameras = static_cast<int>(poses.world_from_depth.size());
-  Accumulated acc{std::vector<double>(cameras, 0), std::vector<int>(cameras, 0)};
+  Accumulated acc{std::vector<double>(cameras, 0), std::vector<int>(cameras, 0), std::vector<char>(static_cast<size_t>(cameras) * cameras, 0)};
   std::vector<Residual> residuals;
   for (auto& frame : clouds) {
     for (int c = 0; c < cameras; ++c) {
@@ -280,6 +281,7 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
         if (frame[a]->empty() || frame[b]->empty()) continue;
         match_pair(*frame[a], *frame[b], a, b, poses, max_distance, weighting, o, residuals);
         if (static_cast<int>(residuals.size()) < o.min_correspondences) continue;
+        acc.pair_matched[static_cast<size_t>(a) * cameras + b] = 1;
         if (trimmed) trim(residuals, o.trim_fraction);
         const int rows = o.point_to_plane ? 1 : 3;
         for (const Residual& res : residuals) {
@@ -400,6 +402,20 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   for (int c = 0; c < cameras; ++c) {
     result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
     result.correspondences_after.push_back(after.count[c]);
+  }
+  // Cameras reached from camera 0 through matched pairs.
+  result.joined_to_first.assign(cameras, 0);
+  result.joined_to_first[0] = 1;
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (int a = 0; a < cameras; ++a) {
+      for (int b = a + 1; b < cameras; ++b) {
+        if (after.pair_matched[static_cast<size_t>(a) * cameras + b] && result.joined_to_first[a] != result.joined_to_first[b]) {
+          result.joined_to_first[a] = result.joined_to_first[b] = 1;
+          grew = true;
+        }
+      }
+    }
   }
   result.world_from_depth = poses.world_from_depth;
   return result;

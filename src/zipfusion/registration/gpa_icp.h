@@ -70,6 +70,10 @@ struct RegistrationResult {
   std::vector<double> rmse_before_m;       // per camera: point-to-plane RMS of its correspondences at the input poses
   std::vector<double> rmse_after_m;        // the same at the refined poses (finest level, end distance)
   std::vector<int> correspondences_after;  // per camera, at the refined poses
+  // Per camera: tied to camera 0 through pairs that share correspondences at the refined poses
+  // (directly or through other cameras). A camera that is not was registered to nothing that
+  // places it against camera 0: two groups that overlap only among themselves are not one rig.
+  std::vector<char> joined_to_first;
   int iterations = 0;                      // Gauss-Newton steps taken over all levels
   bool converged = false;                  // the finest level's last step moved less than converged_rad
 };
