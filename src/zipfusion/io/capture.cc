@@ -131,10 +131,14 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
     check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
-  capture.depth_source_pixel_.resize(rig.cameras.size());
-  for (size_t c = 0; c < rig.cameras.size(); ++c) {
-    const Intrinsics& k = rig.cameras[c].depth_intrinsics;
-    if (k.has_distortion && k.distortion != std::array<double, 5>{}) capture.depth_source_pixel_[c] = depth_undistortion_map(k);
+  capture.depth_map_begin_.assign(1, 0);
+  for (const CameraModel& camera : rig.cameras) {
+    const Intrinsics& k = camera.depth_intrinsics;
+    if (k.has_distortion && k.distortion != std::array<double, 5>{}) {
+      const std::vector<int> map = depth_undistortion_map(k);
+      capture.depth_source_pixel_.insert(capture.depth_source_pixel_.end(), map.begin(), map.end());
+    }
+    capture.depth_map_begin_.push_back(capture.depth_source_pixel_.size());
   }
   return capture;
 }
@@ -174,10 +178,10 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   if (fs::exists(depth_file, ec)) {
     out.depth = read_depth_png(depth_file);
     check_size(depth_file.string(), out.depth.width, out.depth.height, model.depth_intrinsics, "depth_intrinsics");
-    const std::vector<int>& source_pixel = depth_source_pixel_[camera];
-    if (!source_pixel.empty()) {
+    if (depth_map_begin_[camera + 1] > depth_map_begin_[camera]) {
+      const int* source_pixel = depth_source_pixel_.data() + depth_map_begin_[camera];
       DepthImage undistorted(out.depth.width, out.depth.height);
-      for (int p = 0; p < static_cast<int>(undistorted.data.size()); ++p) undistorted.data[p] = undistorted_depth(out.depth.data.data(), source_pixel.data(), p);
+      for (int p = 0; p < static_cast<int>(undistorted.data.size()); ++p) undistorted.data[p] = undistorted_depth(out.depth.data.data(), source_pixel, p);
       out.depth = std::move(undistorted);
     }
     out.has_depth = true;

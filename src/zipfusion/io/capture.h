@@ -83,9 +83,11 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   std::vector<std::vector<std::string>> color_extension_;  // [camera][frame]: ".jpg", ".png" or ""
-  // [camera]: per pinhole pixel, the recorded pixel it takes its depth from (−1: none); empty for
-  // a camera whose depth has no distortion.
-  std::vector<std::vector<int>> depth_source_pixel_;
+  // Per pinhole pixel of every camera whose depth has distortion, the recorded pixel it takes its
+  // depth from (−1: none): camera c's map is [depth_map_begin_[c], depth_map_begin_[c + 1]), empty
+  // for a camera without distortion.
+  std::vector<int> depth_source_pixel_;
+  std::vector<size_t> depth_map_begin_;
 };
 
 //! For a depth camera with lens distortion: per pixel of the pinhole camera of the same fx, fy, cx,

@@ -15,10 +15,11 @@
 namespace zipfusion {
 namespace {
 
-// A line of a text file as an error may quote it: at most 80 bytes, those that are not printable
-// ASCII as \xNN (a binary file passed as INDEX.txt must not print raw bytes to the terminal).
+// The latest recording time an INDEX.txt may name: seconds since 1970, up to the year 2286.
 constexpr double kLatestFakenectTimeS = 1e10;
 
+// A line of a text file as an error may quote it: at most 80 bytes, those that are not printable
+// ASCII as \xNN (a binary file passed as INDEX.txt must not print raw bytes to the terminal).
 std::string printable_excerpt(const std::string& line) {
   constexpr size_t kMostBytes = 80;
   std::string out;
