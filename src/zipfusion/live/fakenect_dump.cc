@@ -98,7 +98,9 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     entry.file = line;
     // fakenect parses "%c-%lf-%u-%*s"; the dash after the timestamp is optional (".pgm" follows).
     char* cursor = nullptr;
-    bool ok = line.size() > 2 && line[1] == '-' && line.find('/') == std::string::npos;
+    // A file name: at most 255 bytes (NAME_MAX), so a longer line names no file, and would be
+    // quoted whole in the stream's end reason.
+    bool ok = line.size() > 2 && line.size() <= 255 && line[1] == '-' && line.find('/') == std::string::npos;
     if (ok) {
       entry.type = line[0];
       entry.time_s = std::strtod(line.c_str() + 2, &cursor);
