@@ -15,6 +15,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Is a frame file there? A missing one (or a link to nothing) is a missing frame, which degrades
+// the frame set; one that cannot even be looked at (a loop of links, no permission) is an error
+// naming it.
+bool frame_file_present(const fs::path& file) {
+  std::error_code ec;
+  const bool present = fs::exists(file, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) throw IoError(file.string() + ": " + ec.message());
+  return present;
+}
+
 void check_size(const std::string& file, int width, int height, const Intrinsics& k, const std::string& field) {
   if (width != k.width || height != k.height) {
     throw InvalidInput(file + ": size " + std::to_string(width) + "x" + std::to_string(height) + " does not match rig.json " +
@@ -173,9 +183,8 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   assert(frame >= 0 && frame < frame_count() && camera >= 0 && camera < camera_count());
   const CameraModel& model = rig_.cameras[camera];
   CameraFrame out;
-  std::error_code ec;
   const fs::path depth_file = depth_path(frame, camera);
-  if (fs::exists(depth_file, ec)) {
+  if (frame_file_present(depth_file)) {
     out.depth = read_depth_png(depth_file);
     check_size(depth_file.string(), out.depth.width, out.depth.height, model.depth_intrinsics, "depth_intrinsics");
     if (depth_map_begin_[camera + 1] > depth_map_begin_[camera]) {
@@ -190,7 +199,7 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   }
   if (model.has_color()) {
     const fs::path color_file = color_path(frame, camera);
-    if (!color_file.empty() && fs::exists(color_file, ec)) {
+    if (!color_file.empty() && frame_file_present(color_file)) {
       out.color = read_color_image(color_file);
       check_size(color_file.string(), out.color.width, out.color.height, *model.color_intrinsics, "color_intrinsics");
       out.has_color = true;

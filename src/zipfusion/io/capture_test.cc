@@ -167,6 +167,19 @@ TEST_F(SmallCapture, CorruptAndTruncatedFilesAreNamed) {
   EXPECT_NE(error.find("a/color/000001.png: cannot decode image"), std::string::npos) << error;
 }
 
+// A frame file that is a loop of links is an error naming it, not a missing frame.
+TEST_F(SmallCapture, FrameFileThatIsALinkLoopIsNamed) {
+  const fs::path file = dir_ / "b" / "depth" / "000001.png";
+  fs::remove(file);
+  fs::create_symlink(file.filename(), file);
+  try {
+    Capture::open(dir_).load_frame(1);
+    FAIL() << "a link loop must not read as a missing frame";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(file.string() + ": ", 0), 0u) << e.what();
+  }
+}
+
 TEST_F(SmallCapture, LayoutErrorsAreNamed) {
   fs::remove_all(dir_ / "b");
   std::string error = open_error();
