@@ -7,6 +7,7 @@
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
+#include <type_traits>
 #include <opencv2/imgcodecs.hpp>
 
 #include "zipfusion/core/error.h"
@@ -76,15 +77,19 @@ void png_on_error(png_structp png, png_const_charp message) {
 
 void png_on_warning(png_structp, png_const_charp) {}
 
-// The pixels of a PNG: 16-bit grey (native byte order) for depth, else 8-bit RGB. Every object
-// with a destructor lives outside the setjmp's scope (a longjmp must skip none).
-struct PngPixels {
+// What decode_png reads besides the pixels. Every object with a destructor lives outside the
+// setjmp's scope (a longjmp must skip none).
+struct PngLayout {
   std::uint32_t width = 0, height = 0;
-  std::vector<std::uint8_t> bytes;
   std::vector<png_bytep> rows;
 };
 
-void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::string& source, PngPixels& out) {
+// Decodes a PNG straight into `image`: 16-bit grey (native byte order) for depth (a DepthImage),
+// else 8-bit RGB (a ColorImage).
+template <typename ImageT>
+void decode_png(const std::vector<std::uint8_t>& bytes, const std::string& source, ImageT& image) {
+  constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
+  PngLayout out;
   PngSource input{bytes.data(), bytes.size()};
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &input, png_on_error, png_on_warning);
   if (png == nullptr) throw IoError(source + ": libpng could not start");
@@ -125,21 +130,22 @@ void decode_png(const std::vector<std::uint8_t>& bytes, bool depth, const std::s
       png_read_update_info(png, info);
       const size_t row_bytes = png_get_rowbytes(png, info);
       if (row_bytes != static_cast<size_t>(out.width) * (depth ? 2 : 3)) png_error(png, "unexpected row layout");
-      out.bytes.resize(row_bytes * out.height);
+      static_assert(sizeof(Rgb8) == 3 && sizeof(unsigned short) == 2);
+      image = ImageT(static_cast<int>(out.width), static_cast<int>(out.height));
       out.rows.resize(out.height);
-      for (std::uint32_t v = 0; v < out.height; ++v) out.rows[v] = out.bytes.data() + v * row_bytes;
+      auto* first = reinterpret_cast<std::uint8_t*>(image.data.data());
+      for (std::uint32_t v = 0; v < out.height; ++v) out.rows[v] = first + v * row_bytes;
       png_read_image(png, out.rows.data());
       png_read_end(png, nullptr);
     }
   }
   png_destroy_read_struct(&png, &info, nullptr);
   if (input.error != nullptr) throw_undecodable(source, input.error);
-  if (too_large) check_image_size(out.width, out.height, source);
+  check_image_size(out.width, out.height, source);
   if (wrong_bits != 0) {
     throw InvalidInput(source + ": bit depth: " + (depth ? "depth PNG must be 16-bit single-channel" : "colour must be 8-bit") + ", got " +
                        std::to_string(wrong_bits) + "-bit with " + std::to_string(wrong_channels) + " channel(s)");
   }
-  check_image_size(out.width, out.height, source);
 }
 
 // libjpeg's error manager: an error, and also a warning (libjpeg warns, and goes on with made-up
@@ -185,7 +191,6 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   errors.manager.error_exit = jpeg_on_error;
   errors.manager.emit_message = jpeg_on_message;
   errors.manager.output_message = jpeg_no_output;
-  bool too_large = false;
   if (setjmp(errors.jump) != 0) {
     jpeg_destroy_decompress(&jpeg);
     throw_undecodable(source, errors.message);
@@ -195,9 +200,7 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   jpeg_read_header(&jpeg, TRUE);
   jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
   const bool cmyk = jpeg.jpeg_color_space == JCS_CMYK || jpeg.jpeg_color_space == JCS_YCCK;
-  if (!plausible_image_size(jpeg.image_width, jpeg.image_height)) {
-    too_large = true;
-  } else if (!cmyk) {
+  if (plausible_image_size(jpeg.image_width, jpeg.image_height) && !cmyk) {
     jpeg_start_decompress(&jpeg);
     color = ColorImage(static_cast<int>(jpeg.output_width), static_cast<int>(jpeg.output_height));
     static_assert(sizeof(Rgb8) == 3);
@@ -209,7 +212,7 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   }
   const std::uint64_t width = jpeg.image_width, height = jpeg.image_height;
   jpeg_destroy_decompress(&jpeg);
-  if (too_large) check_image_size(width, height, source);
+  check_image_size(width, height, source);
   // Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
   if (cmyk) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
 }
@@ -218,10 +221,8 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
 
 DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source) {
   if (!is_png(bytes)) throw InvalidInput(source + ": not a PNG file (depth must be 16-bit PNG)");
-  PngPixels pixels;
-  decode_png(bytes, true, source, pixels);
-  DepthImage depth(static_cast<int>(pixels.width), static_cast<int>(pixels.height));
-  std::memcpy(depth.data.data(), pixels.bytes.data(), pixels.bytes.size());
+  DepthImage depth;
+  decode_png(bytes, source, depth);
   return depth;
 }
 
@@ -236,10 +237,8 @@ ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std:
     return color;
   }
   if (!is_png(bytes)) throw InvalidInput(source + ": not a JPEG or PNG file");
-  PngPixels pixels;
-  decode_png(bytes, false, source, pixels);
-  ColorImage color(static_cast<int>(pixels.width), static_cast<int>(pixels.height));
-  std::memcpy(color.data.data(), pixels.bytes.data(), pixels.bytes.size());
+  ColorImage color;
+  decode_png(bytes, source, color);
   return color;
 }
 
