@@ -103,6 +103,13 @@ double reprojection_error(const Rigid3d& cam_from_ref, const Intrinsics& k, cons
   return (Eigen::Vector2d(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy) - pixel).norm();
 }
 
+// One camera has no pose to find relative to another (Ceres aborted on the empty problem).
+void require_two_cameras(const Rig& rig, const std::string& rig_file) {
+  if (rig.cameras.size() < 2) {
+    throw InvalidInput(rig_file + ": cameras: extrinsic calibration needs at least 2 cameras, the rig has " + std::to_string(rig.cameras.size()));
+  }
+}
+
 }  // namespace
 
 void ExtrinsicOptions::validate() const {
@@ -121,10 +128,7 @@ WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& 
                              const std::function<void(int, int)>& progress) {
   options.validate();
   const Rig& rig = capture.rig();
-  if (rig.cameras.size() < 2) {
-    throw InvalidInput((capture.dir() / "rig.json").string() + ": cameras: extrinsic calibration needs at least 2 cameras, the rig has " +
-                       std::to_string(rig.cameras.size()));
-  }
+  require_two_cameras(rig, (capture.dir() / "rig.json").string());  // before the detection's minutes
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     if (!rig.cameras[c].has_color()) {
       throw InvalidInput((capture.dir() / "rig.json").string() + ": cameras[" + std::to_string(c) + "] (\"" + rig.cameras[c].name +
@@ -158,8 +162,7 @@ ExtrinsicResult calibrate_extrinsics(const Rig& rig, const WandObservations& obs
   options.validate();
   const int n = static_cast<int>(rig.cameras.size());
   assert(observations.cameras == n);
-  // One camera has no pose to find relative to another (Ceres aborted on the empty problem).
-  if (n < 2) throw InvalidInput("rig.json: cameras: extrinsic calibration needs at least 2 cameras, the rig has " + std::to_string(n));
+  require_two_cameras(rig, "rig.json");
   const int frames = observations.frames;
   std::vector<Intrinsics> k(n);
   for (int c = 0; c < n; ++c) {

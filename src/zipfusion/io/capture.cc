@@ -78,7 +78,6 @@ int frame_index_of(const fs::path& file, std::initializer_list<const char*> exte
   return index;
 }
 
-
 std::string frame_file_name(int frame, const std::string& extension) {
   char name[32];
   std::snprintf(name, sizeof name, "%06d", frame);

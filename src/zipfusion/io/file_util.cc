@@ -12,8 +12,9 @@ namespace zipfusion {
 
 std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    throw IoError(path.string() + (std::filesystem::exists(path, ec) ? ": not a regular file (a folder, device or pipe)" : ": no such file"));
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (!std::filesystem::is_regular_file(status)) {
+    throw IoError(path.string() + (std::filesystem::exists(status) ? ": not a regular file (a folder, device or pipe)" : ": no such file"));
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(path.string() + ": cannot open for reading");
@@ -40,7 +41,7 @@ void write_file_atomic(const std::filesystem::path& given_path, std::span<const 
     if (ec || hops == 40) throw IoError(given_path.string() + ": cannot follow the link" + (ec ? ": " + ec.message() : std::string(" (a loop?)")));
     path = target.is_absolute() ? target : path.parent_path() / target;
   }
-  if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) {
+  if (const fs::file_status status = fs::status(path, ec); fs::exists(status) && !fs::is_regular_file(status)) {
     throw IoError(given_path.string() + ": not a regular file (a folder, device or pipe), not replaced");
   }
   // A unique suffix keeps two writers of the same file from sharing a temporary.
