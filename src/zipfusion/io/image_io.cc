@@ -77,74 +77,84 @@ void png_on_error(png_structp png, png_const_charp message) {
 
 void png_on_warning(png_structp, png_const_charp) {}
 
-// What decode_png reads besides the pixels. Every object with a destructor lives outside the
-// setjmp's scope (a longjmp must skip none).
-struct PngLayout {
+// Everything a PNG decode keeps, owned by decode_png: a longjmp from libpng back to the setjmp in
+// read_png leaves that function's own locals indeterminate (C11 7.13.2.1), so read_png keeps none
+// it reads after one, and skips no destructor. The destructor frees libpng's structs however the
+// decode ends, std::bad_alloc included.
+struct PngDecode {
+  PngSource input;
+  png_structp png = nullptr;
+  png_infop info = nullptr;
   std::uint32_t width = 0, height = 0;
   std::vector<png_bytep> rows;
-};
-
-// Decodes a PNG straight into `image`: 16-bit grey (native byte order) for depth (a DepthImage),
-// else 8-bit RGB (a ColorImage).
-template <typename ImageT>
-void decode_png(const std::vector<std::uint8_t>& bytes, const std::string& source, ImageT& image) {
-  constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
-  PngLayout out;
-  PngSource input{bytes.data(), bytes.size()};
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &input, png_on_error, png_on_warning);
-  if (png == nullptr) throw IoError(source + ": libpng could not start");
-  png_infop info = png_create_info_struct(png);
-  if (info == nullptr) {
-    png_destroy_read_struct(&png, nullptr, nullptr);
-    throw IoError(source + ": libpng could not start");
-  }
   // What the file holds, when it is not what was asked for (set inside, thrown outside).
   int wrong_bits = 0, wrong_channels = 0;
   bool too_large = false;
+
+  ~PngDecode() { png_destroy_read_struct(&png, &info, nullptr); }
+};
+
+// Reads the PNG of `d` into `image`: 16-bit grey (native byte order) for depth (a DepthImage),
+// else 8-bit RGB (a ColorImage). False when libpng reported an error (d.input.error).
+template <typename ImageT>
+bool read_png(PngDecode& d, ImageT& image) {
+  constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
   // setjmp alone in the condition, as C allows it.
-  if (setjmp(png_jmpbuf(png)) == 0) {
-    png_set_read_fn(png, &input, png_read_bytes);
-    png_read_info(png, info);
-    const int bit_depth = png_get_bit_depth(png, info), color_type = png_get_color_type(png, info);
-    out.width = png_get_image_width(png, info);
-    out.height = png_get_image_height(png, info);
-    if (!plausible_image_size(out.width, out.height)) {
-      too_large = true;
-    } else if (depth) {
-      if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY) {
-        wrong_bits = bit_depth;
-        wrong_channels = png_get_channels(png, info);
-      } else {
-        png_set_swap(png);  // PNG stores 16-bit samples big-endian
-      }
-    } else if (bit_depth > 8) {
-      wrong_bits = bit_depth;
-      wrong_channels = png_get_channels(png, info);
-    } else {
-      png_set_expand(png);        // palette to RGB, grey below 8 bits to 8
-      png_set_strip_alpha(png);
-      png_set_gray_to_rgb(png);
-    }
-    if (wrong_bits == 0 && !too_large) {
-      png_set_interlace_handling(png);
-      png_read_update_info(png, info);
-      const size_t row_bytes = png_get_rowbytes(png, info);
-      if (row_bytes != static_cast<size_t>(out.width) * (depth ? 2 : 3)) png_error(png, "unexpected row layout");
-      static_assert(sizeof(Rgb8) == 3 && sizeof(unsigned short) == 2);
-      image = ImageT(static_cast<int>(out.width), static_cast<int>(out.height));
-      out.rows.resize(out.height);
-      auto* first = reinterpret_cast<std::uint8_t*>(image.data.data());
-      for (std::uint32_t v = 0; v < out.height; ++v) out.rows[v] = first + v * row_bytes;
-      png_read_image(png, out.rows.data());
-      png_read_end(png, nullptr);
-    }
+  if (setjmp(png_jmpbuf(d.png)) != 0) return false;
+  png_set_read_fn(d.png, &d.input, png_read_bytes);
+  png_read_info(d.png, d.info);
+  const int bit_depth = png_get_bit_depth(d.png, d.info), color_type = png_get_color_type(d.png, d.info);
+  d.width = png_get_image_width(d.png, d.info);
+  d.height = png_get_image_height(d.png, d.info);
+  if (!plausible_image_size(d.width, d.height)) {
+    d.too_large = true;
+    return true;
   }
-  png_destroy_read_struct(&png, &info, nullptr);
-  if (input.error != nullptr) throw_undecodable(source, input.error);
-  check_image_size(out.width, out.height, source);
-  if (wrong_bits != 0) {
+  if (depth) {
+    if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY) {
+      d.wrong_bits = bit_depth;
+      d.wrong_channels = png_get_channels(d.png, d.info);
+      return true;
+    }
+    png_set_swap(d.png);  // PNG stores 16-bit samples big-endian
+  } else if (bit_depth > 8) {
+    d.wrong_bits = bit_depth;
+    d.wrong_channels = png_get_channels(d.png, d.info);
+    return true;
+  } else {
+    png_set_expand(d.png);        // palette to RGB, grey below 8 bits to 8
+    png_set_strip_alpha(d.png);
+    png_set_gray_to_rgb(d.png);
+  }
+  png_set_interlace_handling(d.png);
+  png_read_update_info(d.png, d.info);
+  const size_t row_bytes = png_get_rowbytes(d.png, d.info);
+  if (row_bytes != static_cast<size_t>(d.width) * (depth ? 2 : 3)) png_error(d.png, "unexpected row layout");
+  static_assert(sizeof(Rgb8) == 3 && sizeof(unsigned short) == 2);
+  image = ImageT(static_cast<int>(d.width), static_cast<int>(d.height));
+  d.rows.resize(d.height);
+  auto* first = reinterpret_cast<std::uint8_t*>(image.data.data());
+  for (std::uint32_t v = 0; v < d.height; ++v) d.rows[v] = first + v * row_bytes;
+  png_read_image(d.png, d.rows.data());
+  png_read_end(d.png, nullptr);
+  return true;
+}
+
+// Decodes a PNG straight into `image` (see read_png).
+template <typename ImageT>
+void decode_png(const std::vector<std::uint8_t>& bytes, const std::string& source, ImageT& image) {
+  constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
+  PngDecode d;
+  d.input = PngSource{bytes.data(), bytes.size()};
+  d.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &d.input, png_on_error, png_on_warning);
+  if (d.png == nullptr) throw IoError(source + ": libpng could not start");
+  d.info = png_create_info_struct(d.png);
+  if (d.info == nullptr) throw IoError(source + ": libpng could not start");
+  if (!read_png(d, image)) throw_undecodable(source, d.input.error);
+  check_image_size(d.width, d.height, source);
+  if (d.wrong_bits != 0) {
     throw InvalidInput(source + ": bit depth: " + (depth ? "depth PNG must be 16-bit single-channel" : "colour must be 8-bit") + ", got " +
-                       std::to_string(wrong_bits) + "-bit with " + std::to_string(wrong_channels) + " channel(s)");
+                       std::to_string(d.wrong_bits) + "-bit with " + std::to_string(d.wrong_channels) + " channel(s)");
   }
 }
 
@@ -183,38 +193,47 @@ void jpeg_on_message(j_common_ptr jpeg, int level) {
 
 void jpeg_no_output(j_common_ptr) {}
 
-// Decodes a JPEG into `color` (resized to it).
-void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& source, ColorImage& color) {
+// Everything a JPEG decode keeps, owned by decode_jpeg (as PngDecode, for the same reasons).
+// libjpeg's destroy is a no-op on the zeroed struct, so the destructor needs no flag.
+struct JpegDecode {
   jpeg_decompress_struct jpeg{};
   JpegErrors errors{};
-  jpeg.err = jpeg_std_error(&errors.manager);
-  errors.manager.error_exit = jpeg_on_error;
-  errors.manager.emit_message = jpeg_on_message;
-  errors.manager.output_message = jpeg_no_output;
-  if (setjmp(errors.jump) != 0) {
-    jpeg_destroy_decompress(&jpeg);
-    throw_undecodable(source, errors.message);
+  bool cmyk = false;
+
+  ~JpegDecode() { jpeg_destroy_decompress(&jpeg); }
+};
+
+// Reads the JPEG of `d` into `color` (resized to it). False when libjpeg reported an error
+// (d.errors.message).
+bool read_jpeg(JpegDecode& d, const std::vector<std::uint8_t>& bytes, ColorImage& color) {
+  if (setjmp(d.errors.jump) != 0) return false;
+  jpeg_create_decompress(&d.jpeg);
+  jpeg_mem_src(&d.jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
+  jpeg_read_header(&d.jpeg, TRUE);
+  d.jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
+  d.cmyk = d.jpeg.jpeg_color_space == JCS_CMYK || d.jpeg.jpeg_color_space == JCS_YCCK;
+  if (!plausible_image_size(d.jpeg.image_width, d.jpeg.image_height) || d.cmyk) return true;
+  jpeg_start_decompress(&d.jpeg);
+  color = ColorImage(static_cast<int>(d.jpeg.output_width), static_cast<int>(d.jpeg.output_height));
+  static_assert(sizeof(Rgb8) == 3);
+  while (d.jpeg.output_scanline < d.jpeg.output_height) {
+    JSAMPROW row = reinterpret_cast<JSAMPROW>(color.data.data() + static_cast<size_t>(d.jpeg.output_scanline) * d.jpeg.output_width);
+    jpeg_read_scanlines(&d.jpeg, &row, 1);
   }
-  jpeg_create_decompress(&jpeg);
-  jpeg_mem_src(&jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
-  jpeg_read_header(&jpeg, TRUE);
-  jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
-  const bool cmyk = jpeg.jpeg_color_space == JCS_CMYK || jpeg.jpeg_color_space == JCS_YCCK;
-  if (plausible_image_size(jpeg.image_width, jpeg.image_height) && !cmyk) {
-    jpeg_start_decompress(&jpeg);
-    color = ColorImage(static_cast<int>(jpeg.output_width), static_cast<int>(jpeg.output_height));
-    static_assert(sizeof(Rgb8) == 3);
-    while (jpeg.output_scanline < jpeg.output_height) {
-      JSAMPROW row = reinterpret_cast<JSAMPROW>(color.data.data() + static_cast<size_t>(jpeg.output_scanline) * jpeg.output_width);
-      jpeg_read_scanlines(&jpeg, &row, 1);
-    }
-    jpeg_finish_decompress(&jpeg);
-  }
-  const std::uint64_t width = jpeg.image_width, height = jpeg.image_height;
-  jpeg_destroy_decompress(&jpeg);
-  check_image_size(width, height, source);
+  jpeg_finish_decompress(&d.jpeg);
+  return true;
+}
+
+void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& source, ColorImage& color) {
+  JpegDecode d;
+  d.jpeg.err = jpeg_std_error(&d.errors.manager);
+  d.errors.manager.error_exit = jpeg_on_error;
+  d.errors.manager.emit_message = jpeg_on_message;
+  d.errors.manager.output_message = jpeg_no_output;
+  if (!read_jpeg(d, bytes, color)) throw_undecodable(source, d.errors.message);
+  check_image_size(d.jpeg.image_width, d.jpeg.image_height, source);
   // Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
-  if (cmyk) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
+  if (d.cmyk) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
 }
 
 }  // namespace
