@@ -18,25 +18,6 @@ namespace {
 // The latest recording time an INDEX.txt may name: seconds since 1970, up to the year 2286.
 constexpr double kLatestFakenectTimeS = 1e10;
 
-// A line of a text file as an error may quote it: at most 80 bytes, those that are not printable
-// ASCII as \xNN (a binary file passed as INDEX.txt must not print raw bytes to the terminal).
-std::string printable_excerpt(const std::string& line) {
-  constexpr size_t kMostBytes = 80;
-  std::string out;
-  for (size_t i = 0; i < std::min(line.size(), kMostBytes); ++i) {
-    const auto c = static_cast<unsigned char>(line[i]);
-    if (c >= 0x20 && c < 0x7f) {
-      out += static_cast<char>(c);
-    } else {
-      char escaped[5];
-      std::snprintf(escaped, sizeof escaped, "\\x%02x", c);
-      out += escaped;
-    }
-  }
-  if (line.size() > kMostBytes) out += "...";
-  return out;
-}
-
 namespace fs = std::filesystem;
 
 std::vector<std::uint8_t> with_header(const std::string& header, const void* data, size_t size) {
