@@ -235,9 +235,11 @@ struct Session : std::enable_shared_from_this<Session> {
     } else if (type == "flow") {
       // {"type": "flow", "window": N}: at most N frames unacknowledged (1..8); 0 turns it off.
       if (!command.contains("window") || !command["window"].is_number_integer()) return false;
-      const int n = command["window"];
+      // Read wide, then checked: an int would narrow 2^32 + 1 to a window of one. Past int64, the
+      // unsigned value wraps negative and is refused too.
+      const auto n = command["window"].get<std::int64_t>();
       if (n < 0 || n > 8) return false;
-      window = n;
+      window = static_cast<int>(n);
       release_held();  // a larger window (or none) has room for it now
     } else if (type == "ack") {
       // A frame was drawn (or decoded, or skipped): the newest held frame may go.

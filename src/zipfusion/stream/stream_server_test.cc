@@ -183,6 +183,19 @@ TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
   EXPECT_THROW(client.read(), boost::system::system_error);
 }
 
+// A window past int's range is refused, not narrowed: 2^32 + 1 read as an int would be a window of
+// one. The ping after it would be answered if the window had been taken.
+TEST_F(StreamServerTest, AWindowPastIntsRangeClosesTheClient) {
+  StreamServer server({.port = 0}, "{}");
+  for (const char* window : {"4294967297", "18446744073709551615", "-4294967295"}) {
+    const std::unique_ptr<Client> connection = client_with_window(server, 1);
+    Client& client = *connection;
+    client.ws.write(net::buffer(std::string(R"({"type":"flow","window":)") + window + "}"));
+    client.ws.write(net::buffer(std::string(R"({"type":"ping"})")));
+    EXPECT_THROW(client.read(), boost::system::system_error) << window;
+  }
+}
+
 // A stream makes a frame only when some client can be sent it at once (StreamServer::
 // reserve_frame): nobody watching, nothing made; a viewer with a window of one, one frame per ack.
 TEST_F(StreamServerTest, FramesAreReservedOnlyForClientsWithRoom) {
