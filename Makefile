@@ -4,7 +4,7 @@ JOBS ?= $(shell nproc)
 DEMO_DIR ?= out/demo
 DEMO_PORT ?= 8080
 
-.PHONY: deps configure build demo test bench clean
+.PHONY: deps configure build demo test bench fuzz clean
 
 deps:
 	./scripts/install-deps.sh
@@ -40,5 +40,15 @@ bench: build
 	BUILD_DIR=$(BUILD_DIR) scripts/bench.sh
 	$(BUILD_DIR)/zf_registration_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
+# Each fuzz target (fuzz/) under libFuzzer with ASan and UBSan, FUZZ_SECONDS each; a finding fails
+# and is kept in $(FUZZ_DIR)/findings/. Not part of `make test`, which replays the corpus instead.
+FUZZ_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 60
+fuzz:
+	./scripts/install-deps.sh --fuzz
+	cmake -S . -B $(FUZZ_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ -DZF_FUZZ=ON -DZF_BUILD_TESTS=OFF -DZF_BUILD_BENCH=OFF
+	cmake --build $(FUZZ_DIR) -j $(JOBS) --target zf_fuzz_image_decode zf_fuzz_mesh_parse zf_fuzz_rig_parse zf_fuzz_fakenect
+	scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
+
 clean:
-	rm -rf $(BUILD_DIR) out
+	rm -rf $(BUILD_DIR) $(FUZZ_DIR) out

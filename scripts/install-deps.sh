@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian package that zipfusion's build, tests and benchmarks need.
 # Idempotent: packages already present are skipped, and apt is only asked when something is missing.
+# --fuzz adds what `make fuzz` needs besides (clang and its libFuzzer runtime).
 set -euo pipefail
 
 packages=(
@@ -23,6 +24,9 @@ packages=(
   chromium                           # the viewer's tests run in a real (headless) browser
   libopen3d-dev                      # bench only: Open3D TSDF/Poisson side by side (never in the library)
 )
+if [ "${1:-}" = "--fuzz" ]; then
+  packages+=(clang libclang-rt-dev)  # libFuzzer, ASan and UBSan runtimes for the fuzz targets
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -1,0 +1,44 @@
+// libFuzzer target: depth PNGs and colour PNG/JPEG images (io/image_io.h), the bytes of every
+// frame file a capture holds. A decoded image must be whole and survive a lossless round trip.
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "fuzz/fuzz_check.h"
+#include "zipfusion/io/image_io.h"
+
+namespace zipfusion::fuzz {
+namespace {
+
+template <class T>
+void check_shape(const Image<T>& image) {
+  if (image.width <= 0 || image.height <= 0) fail("an empty image was returned");
+  if (image.data.size() != static_cast<size_t>(image.width) * image.height) fail("pixels do not fill the image");
+}
+
+void check_depth(const std::vector<std::uint8_t>& bytes) {
+  const auto depth = decoded_or_error([&] { return decode_depth_png(bytes, kSource); });
+  if (!depth) return;
+  check_shape(*depth);
+  const DepthImage again = must_decode([&] { return decode_depth_png(encode_depth_png(*depth), kSource); }, "depth PNG");
+  if (!(again == *depth)) fail("depth PNG round trip changed the image");
+}
+
+void check_color(const std::vector<std::uint8_t>& bytes) {
+  const auto color = decoded_or_error([&] { return decode_color_image(bytes, kSource); });
+  if (!color) return;
+  check_shape(*color);
+  const ColorImage again = must_decode([&] { return decode_color_image(encode_color_image(*color, ".png"), kSource); }, "colour PNG");
+  if (!(again == *color)) fail("colour PNG round trip changed the image");
+}
+
+}  // namespace
+}  // namespace zipfusion::fuzz
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::vector<std::uint8_t> bytes(data, data + size);
+  zipfusion::fuzz::check_depth(bytes);
+  zipfusion::fuzz::check_color(bytes);
+  return 0;
+}
