@@ -83,5 +83,19 @@ TEST_F(BenchCli, BadArgumentsGiveOneLineAndExitTwo) {
   }
 }
 
+// Asking for more frame sets than the capture has is an error (it used to time the ones there were
+// and say so only in its header); left to its default, bench takes as many of 30 as there are.
+TEST_F(BenchCli, FramesPastTheCaptureAreAnError) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 2").exit_code, 0);
+  const testing::CommandResult past = run("bench " + capture + " --frames 3 --repeat 1 --json");
+  EXPECT_EQ(past.exit_code, 2);
+  EXPECT_EQ(testing::line_count(past.err), 1);
+  EXPECT_NE(past.err.find("--frames: 3 reaches past the last frame of a capture with 2 frames"), std::string::npos) << past.err;
+  const testing::CommandResult by_default = run("bench " + capture + " --repeat 1 --json");
+  ASSERT_EQ(by_default.exit_code, 0) << by_default.err;
+  EXPECT_EQ(nlohmann::json::parse(by_default.out)["frames"], 2);
+}
+
 }  // namespace
 }  // namespace zipfusion

@@ -31,6 +31,7 @@ struct BenchArgs {
   std::string capture;
   std::string rig;
   int frames = 30;
+  bool frames_given = false;  // --frames on the command line: more than the capture has is an error
   int repeat = 3;
   int soak = 0;
   int threads = 0;
@@ -154,6 +155,10 @@ void run_bench(const BenchArgs& args) {
   if (args.threads < 0) throw InvalidInput("--threads: must be 0 (all cores) or more");
   const Capture capture = Capture::open(args.capture);
   const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  if (args.frames_given && args.frames > capture.frame_count()) {
+    throw InvalidInput("--frames: " + std::to_string(args.frames) + " reaches past the last frame of a capture with " +
+                       std::to_string(capture.frame_count()) + " frames");
+  }
   const int count = std::min(args.frames, capture.frame_count());
   if (count == 0) throw InvalidInput((capture.dir() / "rig.json").string() + ": frame_count: is 0, nothing to time");
 
@@ -284,14 +289,18 @@ void add_bench_command(CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
   CLI::App* cmd = app.add_subcommand("bench", "Time every stage of the reconstruction on a capture (median and 95th percentile)");
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
-  cmd->add_option("--frames", args->frames, "Frame sets to load (the first N), decoded once")->capture_default_str();
+  const CLI::Option* frames = cmd->add_option("--frames", args->frames, "Frame sets to load (the first N; by default as many of 30 as the capture has), decoded once")
+                                  ->capture_default_str();
   cmd->add_option("--repeat", args->repeat, "Passes over the frame sets per configuration")->capture_default_str();
   cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json (e.g. CAPTURE/ground_truth/rig.json)");
   cmd->add_option("--soak", args->soak, "Also reconstruct this many frame sets in a row and report resident memory at 100 and at the end")
       ->capture_default_str();
   add_threads_option(cmd, args->threads);
   cmd->add_flag("--json", args->json, "Print JSON instead of a table");
-  cmd->callback([args] { run_bench(*args); });
+  cmd->callback([args, frames] {
+    args->frames_given = frames->count() > 0;
+    run_bench(*args);
+  });
 }
 
 }  // namespace zipfusion::cli
