@@ -1,6 +1,7 @@
 #include "zipfusion/calib/intrinsics.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -151,6 +152,16 @@ IntrinsicResult calibrate_intrinsics(const std::vector<std::optional<std::vector
   k.cy = cal.camera_matrix.at<double>(1, 2);
   k.has_distortion = options.estimate_distortion;
   for (int i = 0; i < 5; ++i) k.distortion[i] = options.estimate_distortion ? cal.distortion.at<double>(i) : 0.0;
+  // A fit that folds inside the image would be refused by every rig.json reader (io/rig.cc): say so
+  // here, with what helps, rather than write it.
+  if (const double fold = distortion_fold_share(k); fold > 0) {
+    char problem[256];
+    std::snprintf(problem, sizeof problem,
+                  "calibrate intrinsics: the fitted distortion (k1 %.4f, k2 %.4f) folds back at %.0f %% of the way to the image's farthest "
+                  "corner; add views with the board near the corners, or leave distortion out (--no-distortion)",
+                  k.distortion[0], k.distortion[1], 100.0 * fold);
+    throw InvalidInput(problem);
+  }
   return result;
 }
 

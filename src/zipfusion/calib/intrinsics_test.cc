@@ -110,6 +110,42 @@ TEST(Intrinsics, CopiesOfOneViewAreOnePose) {
 
 // Boards OpenCV cannot detect, and images too small for any board, are refused or not found
 // (an OpenCV assertion escaped before).
+// Boards seen only near the centre of a lens whose distortion folds back before the image's corners
+// (k1 = -0.9: r(1 + k1 r²) stops growing at r = 0.61, the corners are at 0.69): the fit finds that
+// distortion, which no rig.json reader would take, so calibrate says so instead of writing it.
+TEST(Intrinsics, AFitThatFoldsInsideTheImageIsAnError) {
+  const Intrinsics truth{.width = 640, .height = 480, .fx = 580, .fy = 580, .cx = 319.5, .cy = 239.5, .distortion = {-0.9, 0, 0, 0, 0}, .has_distortion = true};
+  ASSERT_GT(distortion_fold_share(truth), 0.8);
+  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners;
+  std::vector<std::string> names;
+  for (int v = 0; v < 8; ++v) {
+    // Tilted up to 35°, offset up to 0.25 m at 1 m: every corner within r < 0.45 of the axis.
+    const double angle = 0.6 * std::sin(1.3 * v + 0.4);
+    const Eigen::Vector3d axis = Eigen::Vector3d(std::cos(0.9 * v), std::sin(0.9 * v), 0.2).normalized();
+    const Eigen::Vector3d centre(0.22 * std::cos(2.1 * v), 0.18 * std::sin(2.1 * v), 1.0);
+    const Eigen::Matrix3d rotation = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+    std::vector<Eigen::Vector2d> view;
+    for (int r = 0; r < board.inner_rows; ++r) {
+      for (int c = 0; c < board.inner_columns; ++c) {
+        const Eigen::Vector3d on_board((c - 4) * board.square_m, (r - 2.5) * board.square_m, 0);
+        view.push_back(project(truth, centre + rotation * on_board));
+      }
+    }
+    corners.push_back(view);
+    names.push_back("view_" + std::to_string(v));
+  }
+  try {
+    calibrate_intrinsics(corners, names, 640, 480, board);
+    FAIL() << "a folding fit was accepted";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("folds back at"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--no-distortion"), std::string::npos) << e.what();
+  }
+  // Without distortion the same views calibrate (with the error of a model that leaves it out).
+  EXPECT_NO_THROW(calibrate_intrinsics(corners, names, 640, 480, board, {.estimate_distortion = false}));
+}
+
 TEST(Intrinsics, BoardsAndImagesTooSmallAreHandled) {
   for (const BoardOptions bad : {BoardOptions{.inner_columns = 2, .inner_rows = 5}, BoardOptions{.inner_columns = 5, .inner_rows = 101}}) {
     EXPECT_THROW(bad.validate(), InvalidInput);

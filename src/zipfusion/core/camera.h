@@ -7,7 +7,9 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
+#include <cmath>
 
 namespace zipfusion {
 
@@ -32,6 +34,25 @@ inline Eigen::Vector2d distort(const Intrinsics& k, const Eigen::Vector2d& xy) {
   const double radial = 1 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
   return {x * radial + 2 * d[2] * x * y + d[3] * (r2 + 2 * x * x),
           y * radial + d[2] * (r2 + 2 * y * y) + 2 * d[3] * x * y};
+}
+
+//! Where the radial distortion stops growing inside the image, as a share of the way from the
+//! principal point to the farthest corner (0: it grows all the way, as it must). Past that radius
+//! r·(1 + k1 r² + k2 r⁴ + k3 r⁶) shrinks again, so rays further out land back on pixels nearer the
+//! centre: undistorted depth would repeat a ring of the image, colour be sampled from the wrong
+//! place. A calibrated lens does not fold inside its own image (a Kinect v1's depth lens still has
+//! a slope of 0.9 at the corner); coefficients that do are a typo or a fit that ran away.
+inline double distortion_fold_share(const Intrinsics& k) {
+  const auto& d = k.distortion;
+  const double dx = std::max(k.cx + 0.5, k.width - 0.5 - k.cx) / k.fx, dy = std::max(k.cy + 0.5, k.height - 0.5 - k.cy) / k.fy;
+  const double farthest = std::hypot(dx, dy);  // normalised radius of the farthest corner
+  constexpr int kSteps = 1000;
+  for (int i = 1; i <= kSteps; ++i) {
+    const double r = farthest * i / kSteps, r2 = r * r;
+    const double slope = 1 + r2 * (3 * d[0] + r2 * (5 * d[1] + r2 * 7 * d[4]));  // d/dr of the radial part
+    if (slope <= 0) return static_cast<double>(i) / kSteps;
+  }
+  return 0;
 }
 
 //! Pixel of a point in the camera frame. Precondition: p.z() > 0. Distortion applied when present.

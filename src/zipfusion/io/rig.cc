@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -95,6 +96,16 @@ class Fields {
 
 constexpr double kMostTranslationM = 1000;
 
+void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
+  const double fold = distortion_fold_share(k);
+  if (fold > 0) {
+    char where[160];
+    std::snprintf(where, sizeof where, "folds back inside the image: its radial part stops growing at %.0f %% of the way to the farthest corner",
+                  100.0 * fold);
+    f.fail(f.field("distortion"), where);
+  }
+}
+
 Intrinsics parse_intrinsics(const Fields& f) {
   Intrinsics k;
   k.width = f.integer("width", 1);
@@ -114,6 +125,7 @@ Intrinsics parse_intrinsics(const Fields& f) {
     const std::vector<double> d = f.numbers(f.required("distortion"), f.field("distortion"), 5);
     std::copy(d.begin(), d.end(), k.distortion.begin());
     k.has_distortion = true;
+    check_distortion_unfolded(f, k);
   }
   return k;
 }

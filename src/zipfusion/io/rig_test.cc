@@ -138,6 +138,8 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"zero width", [](json& j) { j["cameras"][1]["depth_intrinsics"]["width"] = 0; }, "cameras[1].depth_intrinsics.width: must be an integer >= 1"},
       {"short distortion", [](json& j) { j["cameras"][0]["color_intrinsics"]["distortion"] = {0.1, 0.2}; },
        "cameras[0].color_intrinsics.distortion: must be an array of 5 numbers"},
+      {"folding distortion", [](json& j) { j["cameras"][1]["depth_intrinsics"]["distortion"] = {-1.5, 0, 0, 0, 0}; },
+       "cameras[1].depth_intrinsics.distortion: folds back inside the image"},
       {"colour pose without intrinsics", [](json& j) { j["cameras"][0].erase("color_intrinsics"); },
        "cameras[0].color_intrinsics: missing: color_intrinsics and color_from_depth come together"},
       {"scaled pose", [](json& j) { j["cameras"][0]["world_from_depth"][0][0] = 2.0; }, "cameras[0].world_from_depth: is not a rigid transform"},
