@@ -157,7 +157,7 @@ void run_bench(const BenchArgs& args) {
   const Rig rig = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   if (args.frames_given && args.frames > capture.frame_count()) {
     throw InvalidInput("--frames: " + std::to_string(args.frames) + " reaches past the last frame of a capture with " +
-                       std::to_string(capture.frame_count()) + " frames");
+                       std::to_string(capture.frame_count()) + " frames (" + (capture.dir() / "rig.json").string() + ")");
   }
   const int count = std::min(args.frames, capture.frame_count());
   if (count == 0) throw InvalidInput((capture.dir() / "rig.json").string() + ": frame_count: is 0, nothing to time");

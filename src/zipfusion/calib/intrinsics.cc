@@ -1,8 +1,8 @@
 #include "zipfusion/calib/intrinsics.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 

@@ -108,8 +108,6 @@ TEST(Intrinsics, CopiesOfOneViewAreOnePose) {
   EXPECT_FALSE(result.views.back().used);
 }
 
-// Boards OpenCV cannot detect, and images too small for any board, are refused or not found
-// (an OpenCV assertion escaped before).
 // Boards seen only near the centre of a lens whose distortion folds back before the image's corners
 // (k1 = -0.9: r(1 + k1 r²) stops growing at r = 0.61, the corners are at 0.69): the fit finds that
 // distortion, which no rig.json reader would take, so calibrate says so instead of writing it.
@@ -146,6 +144,8 @@ TEST(Intrinsics, AFitThatFoldsInsideTheImageIsAnError) {
   EXPECT_NO_THROW(calibrate_intrinsics(corners, names, 640, 480, board, {.estimate_distortion = false}));
 }
 
+// Boards OpenCV cannot detect, and images too small for any board, are refused or not found
+// (an OpenCV assertion escaped before).
 TEST(Intrinsics, BoardsAndImagesTooSmallAreHandled) {
   for (const BoardOptions bad : {BoardOptions{.inner_columns = 2, .inner_rows = 5}, BoardOptions{.inner_columns = 5, .inner_rows = 101}}) {
     EXPECT_THROW(bad.validate(), InvalidInput);

@@ -40,8 +40,8 @@ inline Eigen::Vector2d distort(const Intrinsics& k, const Eigen::Vector2d& xy) {
 //! principal point to the farthest corner (0: it grows all the way, as it must). Past that radius
 //! r·(1 + k1 r² + k2 r⁴ + k3 r⁶) shrinks again, so rays further out land back on pixels nearer the
 //! centre: undistorted depth would repeat a ring of the image, colour be sampled from the wrong
-//! place. A calibrated lens does not fold inside its own image (a Kinect v1's depth lens still has
-//! a slope of 0.9 at the corner); coefficients that do are a typo or a fit that ran away.
+//! place. A calibrated lens does not fold inside its own image; coefficients that do are a typo or
+//! a fit that ran away.
 inline double distortion_fold_share(const Intrinsics& k) {
   const auto& d = k.distortion;
   const double dx = std::max(k.cx + 0.5, k.width - 0.5 - k.cx) / k.fx, dy = std::max(k.cy + 0.5, k.height - 0.5 - k.cy) / k.fy;

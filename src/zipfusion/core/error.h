@@ -3,8 +3,6 @@
 //! Errors for bad external input (files, rig.json, options). The library throws these; only the
 //! CLI prints them. Broken internal preconditions are asserts, not exceptions.
 
-#include <algorithm>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -24,23 +22,9 @@ class IoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-//! Bytes of an input as an error message may quote them: at most `most_bytes`, then "...", and
-//! every byte that is not printable ASCII as \xNN, so a binary file or a control character never
-//! reaches the terminal raw, and the message stays one line.
-inline std::string printable_excerpt(std::string_view bytes, size_t most_bytes = 80) {
-  std::string out;
-  for (size_t i = 0; i < std::min(bytes.size(), most_bytes); ++i) {
-    const auto c = static_cast<unsigned char>(bytes[i]);
-    if (c >= 0x20 && c < 0x7f) {
-      out += static_cast<char>(c);
-    } else {
-      char escaped[5];
-      std::snprintf(escaped, sizeof escaped, "\\x%02x", c);
-      out += escaped;
-    }
-  }
-  if (bytes.size() > most_bytes) out += "...";
-  return out;
-}
+//! Bytes of an input as an error message may quote them: every byte that is not printable ASCII
+//! as \xNN, so a binary file or a control character never reaches the terminal raw and the
+//! message stays one line; cut with "..." to at most `most_chars` characters (plus the dots).
+std::string printable_excerpt(std::string_view bytes, size_t most_chars = 80);
 
 }  // namespace zipfusion

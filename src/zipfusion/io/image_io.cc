@@ -99,7 +99,7 @@ struct PngDecode {
 template <typename ImageT>
 bool read_png(PngDecode& d, ImageT& image) {
   constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
-  // setjmp alone in the condition, as C allows it.
+  // setjmp compared with a constant in the condition: one of the uses C allows (7.13.1.1).
   if (setjmp(png_jmpbuf(d.png)) != 0) return false;
   png_set_read_fn(d.png, &d.input, png_read_bytes);
   png_read_info(d.png, d.info);

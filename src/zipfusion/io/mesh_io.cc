@@ -186,10 +186,10 @@ PlyHeader parse_ply_header(const std::vector<std::uint8_t>& bytes, const std::st
       PlyElement element;
       element.name = std::string(tokens[1]);
       if (!parse_number(tokens[2], element.count)) {
-        fail(source, where + ": element '" + element.name + "': bad count " + quote_token(tokens[2]));
+        fail(source, where + ": element " + quote_token(element.name) + ": bad count " + quote_token(tokens[2]));
       }
       for (const PlyElement& other : header.elements) {
-        if (other.name == element.name) fail(source, where + ": duplicate element '" + element.name + "'");
+        if (other.name == element.name) fail(source, where + ": duplicate element " + quote_token(element.name));
       }
       header.elements.push_back(std::move(element));
     } else if (keyword == "property") {
@@ -208,7 +208,7 @@ PlyHeader parse_ply_header(const std::vector<std::uint8_t>& bytes, const std::st
       } else {
         fail(source, where + ": expected 'property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME'");
       }
-      const std::string what = where + ": property '" + property.name + "'";
+      const std::string what = where + ": property " + quote_token(property.name);
       const std::optional<ScalarType> type = parse_scalar_type(type_name);
       if (!type) fail(source, what + ": unknown type " + quote_token(type_name));
       property.type = *type;
@@ -219,7 +219,7 @@ PlyHeader parse_ply_header(const std::vector<std::uint8_t>& bytes, const std::st
         property.count_type = *count_type;
       }
       if (element.find(property.name) >= 0) {
-        fail(source, what + ": duplicate property in element '" + element.name + "'");
+        fail(source, what + ": duplicate property in element " + quote_token(element.name));
       }
       element.properties.push_back(std::move(property));
     } else {
@@ -333,11 +333,11 @@ void for_each_element(const PlyElement& element, const std::string& source, Body
   try {
     for (; i < element.count; ++i) body(i);
   } catch (const Truncated&) {
-    fail(source, "truncated data: element '" + element.name + "' " + std::to_string(i) + " of " +
+    fail(source, "truncated data: element " + quote_token(element.name) + " " + std::to_string(i) + " of " +
                      std::to_string(element.count) + " is incomplete");
   } catch (const BadToken& bad) {
     fail(source,
-         "element '" + element.name + "' " + std::to_string(i) + ": bad number " + quote_token(bad.token));
+         "element " + quote_token(element.name) + " " + std::to_string(i) + ": bad number " + quote_token(bad.token));
   }
 }
 
@@ -347,8 +347,8 @@ std::uint64_t read_list_count(Reader& reader, const PlyProperty& property, const
                               const std::string& element_name, std::uint64_t i) {
   const double count = reader.read(property.count_type);
   if (!(count >= 0) || count != std::floor(count) || count > 4294967295.0) {
-    fail(source, element_name + " " + std::to_string(i) + ": property '" + property.name +
-                     "': bad list count " + number_text(count));
+    fail(source, quote_token(element_name) + " " + std::to_string(i) + ": property " + quote_token(property.name) +
+                     ": bad list count " + number_text(count));
   }
   return static_cast<std::uint64_t>(count);
 }
@@ -373,7 +373,7 @@ void skip_element(Reader& reader, const PlyElement& element, const std::string& 
     size_t size = 0;
     for (const PlyProperty& p : element.properties) size += type_size(p.type);
     if (element.count > reader.remaining() / size) {
-      fail(source, "truncated data: element '" + element.name + "' needs more bytes than remain");
+      fail(source, "truncated data: element " + quote_token(element.name) + " needs more bytes than remain");
     }
     reader.skip(ScalarType::kUInt8, element.count * size);
     return;
@@ -460,9 +460,9 @@ void read_faces(Reader& reader, const PlyElement& element, std::uint64_t vertex_
   const int index_property = face_index_property(element);
   if (index_property < 0) fail(source, "element 'face': missing property 'vertex_indices'");
   const PlyProperty& indices = element.properties[index_property];
-  if (!indices.is_list) fail(source, "element 'face': property '" + indices.name + "' must be a list");
+  if (!indices.is_list) fail(source, "element 'face': property " + quote_token(indices.name) + " must be a list");
   if (!is_integer(indices.type)) {
-    fail(source, "element 'face': property '" + indices.name + "' must have an integer index type");
+    fail(source, "element 'face': property " + quote_token(indices.name) + " must have an integer index type");
   }
 
   // A valid face takes at least a count and 3 indices ("3 0 1 2" in ascii): reserve no more
@@ -512,7 +512,7 @@ TriangleMesh read_ply_body(Reader& reader, const PlyHeader& header, const std::s
     }
     if (min_size == 0) continue;
     if (element.count > (available - needed) / min_size) {
-      fail(source, "truncated data: element '" + element.name + "' declares " +
+      fail(source, "truncated data: element " + quote_token(element.name) + " declares " +
                        std::to_string(element.count) + " entries but only " + std::to_string(available) +
                        " bytes of data follow the header");
     }

@@ -43,7 +43,7 @@ class Fields {
   }
   double positive(const std::string& key) const {
     const double d = number(key);
-    if (d <= 0) fail(field(key), "must be positive, got " + required(key).dump());
+    if (d <= 0) fail(field(key), "must be positive, got " + quoted(required(key)));
     return d;
   }
   // A positive number inside [lowest, highest]: values outside are no camera's, and would pass
@@ -52,10 +52,12 @@ class Fields {
   double plausible(const std::string& key, double lowest, double highest, const std::string& unit) const {
     const double d = positive(key);
     if (!(d >= lowest && d <= highest)) {
-      fail(field(key), "must be in [" + short_number(lowest) + ", " + short_number(highest) + "] " + unit + ", got " + required(key).dump());
+      fail(field(key), "must be in [" + short_number(lowest) + ", " + short_number(highest) + "] " + unit + ", got " + quoted(required(key)));
     }
     return d;
   }
+  // A value from the file as a message quotes it: JSON text, cut and escaped (printable_excerpt).
+  static std::string quoted(const json& v) { return printable_excerpt(v.dump(), 80); }
   static std::string short_number(double d) {
     char text[32];
     std::snprintf(text, sizeof text, "%g", d);
@@ -63,10 +65,10 @@ class Fields {
   }
   int integer(const std::string& key, int min_value) const {
     const json& v = required(key);
-    if (!v.is_number_integer()) fail(field(key), "must be an integer, got " + v.dump());
+    if (!v.is_number_integer()) fail(field(key), "must be an integer, got " + quoted(v));
     const long long i = v.get<long long>();
     if (i < min_value || i > 1'000'000'000) {
-      fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + v.dump());
+      fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + quoted(v));
     }
     return static_cast<int>(i);
   }
@@ -99,9 +101,10 @@ constexpr double kMostTranslationM = 1000;
 void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
   const double fold = distortion_fold_share(k);
   if (fold > 0) {
-    char where[160];
-    std::snprintf(where, sizeof where, "folds back inside the image: its radial part stops growing at %.0f %% of the way to the farthest corner",
-                  100.0 * fold);
+    char where[200];
+    std::snprintf(where, sizeof where,
+                  "folds back inside the image: its radial part (k1 %g, k2 %g, k3 %g) stops growing %.1f %% of the way to the farthest corner",
+                  k.distortion[0], k.distortion[1], k.distortion[4], 100.0 * fold);
     f.fail(f.field("distortion"), where);
   }
 }
@@ -119,8 +122,8 @@ Intrinsics parse_intrinsics(const Fields& f) {
   k.fy = f.plausible("fy", 0.02 * side, 100.0 * side, for_image);
   k.cx = f.number("cx");
   k.cy = f.number("cy");
-  if (!(k.cx >= -k.width && k.cx <= 2.0 * k.width)) f.fail(f.field("cx"), "must be in [-width, 2 width] pixels, got " + f.required("cx").dump());
-  if (!(k.cy >= -k.height && k.cy <= 2.0 * k.height)) f.fail(f.field("cy"), "must be in [-height, 2 height] pixels, got " + f.required("cy").dump());
+  if (!(k.cx >= -k.width && k.cx <= 2.0 * k.width)) f.fail(f.field("cx"), "must be in [-width, 2 width] pixels, got " + Fields::quoted(f.required("cx")));
+  if (!(k.cy >= -k.height && k.cy <= 2.0 * k.height)) f.fail(f.field("cy"), "must be in [-height, 2 height] pixels, got " + Fields::quoted(f.required("cy")));
   if (f.has("distortion")) {
     const std::vector<double> d = f.numbers(f.required("distortion"), f.field("distortion"), 5);
     std::copy(d.begin(), d.end(), k.distortion.begin());
@@ -188,11 +191,11 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   try {
     root = json::parse(json_text);
   } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double's range
-    throw InvalidInput(source + ": not valid JSON: " + e.what());
+    throw InvalidInput(source + ": not valid JSON: " + printable_excerpt(e.what(), 300));  // nlohmann quotes the bytes it last read
   }
   const Fields top(root, source, "");
   const std::string format = top.string("format");
-  if (format != kRigFormat) top.fail("format", "must be \"" + std::string(kRigFormat) + "\", got \"" + format + "\"");
+  if (format != kRigFormat) top.fail("format", "must be \"" + std::string(kRigFormat) + "\", got " + Fields::quoted(format));
 
   Rig rig;
   rig.fps = top.plausible("fps", 0.001, 1000, "frames per second");
@@ -200,7 +203,7 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   if (top.has("depth_unit_m")) rig.depth_unit_m = top.plausible("depth_unit_m", 1e-6, 1, "metres");
   if (top.has("poses_trusted")) {
     const json& trusted = top.required("poses_trusted");
-    if (!trusted.is_boolean()) top.fail("poses_trusted", "must be true or false, got " + trusted.dump());
+    if (!trusted.is_boolean()) top.fail("poses_trusted", "must be true or false, got " + Fields::quoted(trusted));
     rig.poses_trusted = trusted.get<bool>();
   }
   if (top.has("volume")) {
@@ -219,8 +222,8 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
     const Fields cam(cameras[i], source, "cameras[" + std::to_string(i) + "]");
     CameraModel model;
     model.name = cam.string("name");
-    if (!is_safe_folder_name(model.name)) cam.fail(cam.field("name"), "\"" + model.name + "\" is not a usable folder name");
-    if (!names.insert(model.name).second) cam.fail(cam.field("name"), "\"" + model.name + "\" is used by two cameras");
+    if (!is_safe_folder_name(model.name)) cam.fail(cam.field("name"), Fields::quoted(model.name) + " is not a usable folder name");
+    if (!names.insert(model.name).second) cam.fail(cam.field("name"), Fields::quoted(model.name) + " is used by two cameras");
     model.depth_intrinsics = parse_intrinsics(cam.object("depth_intrinsics"));
     const bool has_color_intrinsics = cam.has("color_intrinsics");
     if (has_color_intrinsics != cam.has("color_from_depth")) {
