@@ -47,7 +47,7 @@ FUZZ_SECONDS ?= 60
 fuzz:
 	./scripts/install-deps.sh --fuzz
 	cmake -S . -B $(FUZZ_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ -DZF_FUZZ=ON -DZF_BUILD_TESTS=OFF -DZF_BUILD_BENCH=OFF
-	cmake --build $(FUZZ_DIR) -j $(JOBS) --target zf_fuzz_image_decode zf_fuzz_mesh_parse zf_fuzz_rig_parse zf_fuzz_fakenect
+	cmake --build $(FUZZ_DIR) -j $(JOBS) --target zf_fuzz_all
 	scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
 
 clean:

@@ -18,7 +18,7 @@ void check_shape(const Image<T>& image) {
 }
 
 void check_depth(const std::vector<std::uint8_t>& bytes) {
-  const auto depth = decoded_or_error([&] { return decode_depth_png(bytes, kSource); });
+  const auto depth = decoded_or_error("depth", [&] { return decode_depth_png(bytes, kSource); });
   if (!depth) return;
   check_shape(*depth);
   const DepthImage again = must_decode([&] { return decode_depth_png(encode_depth_png(*depth), kSource); }, "depth PNG");
@@ -26,7 +26,7 @@ void check_depth(const std::vector<std::uint8_t>& bytes) {
 }
 
 void check_color(const std::vector<std::uint8_t>& bytes) {
-  const auto color = decoded_or_error([&] { return decode_color_image(bytes, kSource); });
+  const auto color = decoded_or_error("color", [&] { return decode_color_image(bytes, kSource); });
   if (!color) return;
   check_shape(*color);
   const ColorImage again = must_decode([&] { return decode_color_image(encode_color_image(*color, ".png"), kSource); }, "colour PNG");

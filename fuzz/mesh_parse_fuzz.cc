@@ -30,7 +30,7 @@ bool same_mesh(const TriangleMesh& a, const TriangleMesh& b) {
 }
 
 void check_ply(const std::vector<std::uint8_t>& bytes) {
-  const auto mesh = decoded_or_error([&] { return parse_ply(bytes, kSource); });
+  const auto mesh = decoded_or_error("ply", [&] { return parse_ply(bytes, kSource); });
   if (!mesh) return;
   check_valid(*mesh);
   const TriangleMesh again = must_decode([&] { return parse_ply(encode_ply(*mesh), kSource); }, "PLY");
@@ -38,7 +38,7 @@ void check_ply(const std::vector<std::uint8_t>& bytes) {
 }
 
 void check_obj(const std::string& text) {
-  const auto mesh = decoded_or_error([&] { return parse_obj(text, kSource); });
+  const auto mesh = decoded_or_error("obj", [&] { return parse_obj(text, kSource); });
   if (!mesh) return;
   check_valid(*mesh);
   const TriangleMesh again = must_decode([&] { return parse_obj(encode_obj(*mesh), kSource); }, "OBJ");

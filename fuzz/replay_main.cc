@@ -1,6 +1,7 @@
 // The main of a fuzz target built without libFuzzer (GCC): runs LLVMFuzzerTestOneInput once on
 // every file named, or every file inside every folder named, in name order. `make test` replays
-// each target's corpus in fuzz/corpus/ this way; a failed check aborts. libFuzzer's own builds
+// each target's corpus in fuzz/corpus/ this way; a failed check aborts. A file named
+// "valid-DECODER_…" must be accepted by that decoder (fuzz_check.h). libFuzzer's own builds
 // (`make fuzz`) replace this main.
 
 #include <algorithm>
@@ -10,7 +11,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <string>
 #include <vector>
+
+#include "fuzz/fuzz_check.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
 
@@ -41,6 +45,9 @@ int main(int argc, char** argv) {
     }
     const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
     std::fprintf(stderr, "%s (%zu bytes)\n", input.c_str(), bytes.size());
+    const std::string name = input.filename().string();
+    const bool valid = name.rfind("valid-", 0) == 0 && name.find('_') != std::string::npos;
+    zipfusion::fuzz::decoder_that_must_accept() = valid ? name.substr(6, name.find('_') - 6) : "";
     LLVMFuzzerTestOneInput(bytes.data(), bytes.size());
   }
   std::fprintf(stderr, "%zu inputs passed\n", inputs.size());

@@ -9,7 +9,9 @@ seconds=${2:?usage: fuzz.sh FUZZ_DIR SECONDS}
 source_dir=$(cd "$(dirname "$0")/.." && pwd)
 
 failed=()
-for name in image_decode mesh_parse rig_parse fakenect; do
+for target in "$fuzz_dir"/zf_fuzz_*; do
+  [ -x "$target" ] || continue
+  name=${target##*/zf_fuzz_}
   corpus="$fuzz_dir/corpus/$name"
   findings="$fuzz_dir/findings/$name"
   mkdir -p "$corpus" "$findings"
@@ -17,7 +19,7 @@ for name in image_decode mesh_parse rig_parse fakenect; do
   max_len=65536
   if [ "$name" = fakenect ]; then max_len=1000000; fi
   echo "fuzz: $name for ${seconds} s"
-  if ! "$fuzz_dir/zf_fuzz_$name" "$corpus" "$source_dir/fuzz/corpus/$name" \
+  if ! "$target" "$corpus" "$source_dir/fuzz/corpus/$name" \
       -max_total_time="$seconds" -max_len="$max_len" -timeout=10 -rss_limit_mb=4096 \
       -artifact_prefix="$findings/" -print_final_stats=1 >"$fuzz_dir/$name.log" 2>&1; then
     failed+=("$name")

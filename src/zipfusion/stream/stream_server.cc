@@ -225,32 +225,30 @@ struct Session : std::enable_shared_from_this<Session> {
   // A command from the client; false when it is not one.
   bool handle(const std::string& text) {
     if (!ws.got_text()) return false;
-    const nlohmann::json command = nlohmann::json::parse(text, nullptr, false);
-    if (!command.is_object() || !command.contains("type") || !command["type"].is_string()) return false;
-    const std::string type = command["type"];
-    if (type == "pause") {
-      paused = true;
-    } else if (type == "resume") {
-      paused = false;
-    } else if (type == "flow") {
-      // {"type": "flow", "window": N}: at most N frames unacknowledged (1..8); 0 turns it off.
-      if (!command.contains("window") || !command["window"].is_number_integer()) return false;
-      // Read wide, then checked: an int would narrow 2^32 + 1 to a window of one. Past int64, the
-      // unsigned value wraps negative and is refused too.
-      const auto n = command["window"].get<std::int64_t>();
-      if (n < 0 || n > 8) return false;
-      window = static_cast<int>(n);
-      release_held();  // a larger window (or none) has room for it now
-    } else if (type == "ack") {
-      // A frame was drawn (or decoded, or skipped): the newest held frame may go.
-      if (in_flight > 0) --in_flight;
-      release_held();
-    } else if (type == "ping") {
-      nlohmann::json pong = {{"type", "pong"}};
-      if (command.contains("t")) pong["t"] = command["t"];
-      enqueue(std::make_shared<const std::string>(pong.dump()), false);
-    } else {
-      return false;
+    const std::optional<ClientCommand> command = parse_client_command(text);
+    if (!command) return false;
+    switch (command->type) {
+      case ClientCommand::Type::kPause:
+        paused = true;
+        break;
+      case ClientCommand::Type::kResume:
+        paused = false;
+        break;
+      case ClientCommand::Type::kFlow:
+        window = command->flow_window;
+        release_held();  // a larger window (or none) has room for it now
+        break;
+      case ClientCommand::Type::kAck:
+        // A frame was drawn (or decoded, or skipped): the newest held frame may go.
+        if (in_flight > 0) --in_flight;
+        release_held();
+        break;
+      case ClientCommand::Type::kPing: {
+        // As nlohmann writes the object: keys sorted.
+        const std::string pong = command->ping_t.empty() ? R"({"type":"pong"})" : R"({"t":)" + command->ping_t + R"(,"type":"pong"})";
+        enqueue(std::make_shared<const std::string>(pong), false);
+        break;
+      }
     }
     return true;
   }
@@ -437,6 +435,35 @@ void StreamServerOptions::validate() const {
   if (!web_root.empty() && !std::filesystem::is_regular_file(web_root / "index.html")) {
     throw InvalidInput((web_root / "index.html").string() + ": the viewer is missing (build it with make build)");
   }
+}
+
+std::optional<ClientCommand> parse_client_command(std::string_view text) {
+  const nlohmann::json command = nlohmann::json::parse(text, nullptr, false);
+  if (!command.is_object() || !command.contains("type") || !command["type"].is_string()) return std::nullopt;
+  const std::string& type = command["type"].get_ref<const std::string&>();
+  ClientCommand out;
+  if (type == "pause") {
+    out.type = ClientCommand::Type::kPause;
+  } else if (type == "resume") {
+    out.type = ClientCommand::Type::kResume;
+  } else if (type == "flow") {
+    // {"type": "flow", "window": N}: at most N frames unacknowledged (1..8); 0 turns it off. Read
+    // wide, then checked: an int would narrow 2^32 + 1 to a window of one. Past int64, the unsigned
+    // value wraps negative and is refused too.
+    if (!command.contains("window") || !command["window"].is_number_integer()) return std::nullopt;
+    const auto n = command["window"].get<std::int64_t>();
+    if (n < 0 || n > 8) return std::nullopt;
+    out.type = ClientCommand::Type::kFlow;
+    out.flow_window = static_cast<int>(n);
+  } else if (type == "ack") {
+    out.type = ClientCommand::Type::kAck;
+  } else if (type == "ping") {
+    out.type = ClientCommand::Type::kPing;
+    if (command.contains("t")) out.ping_t = command["t"].dump();
+  } else {
+    return std::nullopt;
+  }
+  return out;
 }
 
 std::string frame_message(const std::string& header_json, const std::string& draco_bytes) {

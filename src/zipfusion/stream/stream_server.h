@@ -21,7 +21,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace zipfusion {
 
@@ -46,6 +48,18 @@ struct StreamServerStats {
   long frames_skipped = 0;       // frame messages a slow client skipped
   long bytes_sent = 0;
 };
+
+//! A client's command, as the server understands it.
+struct ClientCommand {
+  enum class Type { kPause, kResume, kFlow, kAck, kPing };
+  Type type = Type::kPing;
+  int flow_window = 0;   // kFlow: at most this many frames unacknowledged (1..8); 0 turns flow control off
+  std::string ping_t;    // kPing: the "t" member as JSON text, echoed in the pong; empty: none
+};
+
+//! Parses a client's text message (untrusted bytes from the network); nullopt when it is not a
+//! command: not JSON, not an object, an unknown type, a window outside 0..8.
+std::optional<ClientCommand> parse_client_command(std::string_view text);
 
 //! The frame message: "ZFM1", the header's length (uint32, little-endian), the JSON header, the
 //! Draco bytes.
