@@ -81,7 +81,11 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     char* cursor = nullptr;
     // A file name: at most 255 bytes (NAME_MAX), so a longer line names no file, and would be
     // quoted whole in the stream's end reason.
-    bool ok = line.size() > 2 && line.size() <= 255 && line[1] == '-' && line.find('/') == std::string::npos;
+    // fakenect reads the name with scanf's %s, and opens it in the dump folder: printable ASCII
+    // without spaces or '/', after a letter for the type (a NUL "type" cut the name short).
+    const auto name_byte = [](char c) { return c > 0x20 && c < 0x7f && c != '/'; };
+    bool ok = line.size() > 2 && line.size() <= 255 && std::isalpha(static_cast<unsigned char>(line[0])) && line[1] == '-' &&
+              std::all_of(line.begin(), line.end(), name_byte);
     if (ok) {
       entry.type = line[0];
       entry.time_s = std::strtod(line.c_str() + 2, &cursor);
@@ -97,7 +101,7 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     }
     if (!ok) {
       throw InvalidInput(source + ": line " + std::to_string(line_number) + ": \"" + printable_excerpt(line) +
-                         "\" is not a fakenect file name TYPE-SECONDS-TIMESTAMP, seconds in [0, 1e10] (e.g. d-1700000000.000000-0.pgm)");
+                         "\" is not a fakenect file name TYPE-SECONDS-TIMESTAMP (a letter, seconds in [0, 1e10], printable, no spaces; e.g. d-1700000000.000000-0.pgm)");
     }
     entries.push_back(std::move(entry));
   }

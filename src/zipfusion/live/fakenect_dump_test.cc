@@ -86,11 +86,17 @@ TEST(FakenectFormat, IndexParsesTypeTimeAndTimestamp) {
 TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
   // Longer than any file name (255 bytes): it names no file.
   const std::string too_long = "d-1.0-12.pgm\nd-1.0-12-" + std::string(300, 'x') + ".pgm\n";
-  for (const char* bad : {"d-1.0-12.pgm\nnot-a-name\n", "d-1.0-12.pgm\nd-x-12.pgm\n", "d-1.0-12.pgm\nd-1.0-.pgm\n",
-                          "d-1.0-12.pgm\nd-1.0-99999999999.pgm\n", "d-1.0-12.pgm\nd-1.0-12/../x.pgm\n",
-                          // Times that are no recording's: grouping frames at them never ended.
-                          "d-1.0-12.pgm\nd-nan-12.pgm\n", "d-1.0-12.pgm\nd-inf-12.pgm\n", "d-1.0-12.pgm\nd-1e300-12.pgm\n",
-                          "d-1.0-12.pgm\nd--5.0-12.pgm\n", too_long.c_str()}) {
+  // A NUL byte for the type (libFuzzer found it: the name fakenect would be given was cut short),
+  // a digit, a space, an escape: names that scanf's %s or the file system would not read back.
+  const std::string nul_type = std::string("d-1.0-12.pgm\n") + '\0' + "-1.0-12.pgm\n";
+  for (const std::string& bad : {std::string("d-1.0-12.pgm\nnot-a-name\n"), std::string("d-1.0-12.pgm\nd-x-12.pgm\n"),
+                                 std::string("d-1.0-12.pgm\nd-1.0-.pgm\n"), std::string("d-1.0-12.pgm\nd-1.0-99999999999.pgm\n"),
+                                 std::string("d-1.0-12.pgm\nd-1.0-12/../x.pgm\n"),
+                                 // Times that are no recording's: grouping frames at them never ended.
+                                 std::string("d-1.0-12.pgm\nd-nan-12.pgm\n"), std::string("d-1.0-12.pgm\nd-inf-12.pgm\n"),
+                                 std::string("d-1.0-12.pgm\nd-1e300-12.pgm\n"), std::string("d-1.0-12.pgm\nd--5.0-12.pgm\n"), too_long,
+                                 nul_type, std::string("d-1.0-12.pgm\n5-1.0-12.pgm\n"), std::string("d-1.0-12.pgm\nd-1.0-12 x.pgm\n"),
+                                 std::string("d-1.0-12.pgm\nd-1.0-12.p\x1bgm\n")}) {
     try {
       parse_fakenect_index(bad, "dump/INDEX.txt");
       ADD_FAILURE() << bad;
