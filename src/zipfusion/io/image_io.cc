@@ -89,7 +89,6 @@ struct PngDecode {
   std::vector<png_bytep> rows;
   // What the file holds, when it is not what was asked for (set inside, thrown outside).
   int wrong_bits = 0, wrong_channels = 0;
-  bool too_large = false;
 
   ~PngDecode() { png_destroy_read_struct(&png, &info, nullptr); }
 };
@@ -106,10 +105,7 @@ bool read_png(PngDecode& d, ImageT& image) {
   const int bit_depth = png_get_bit_depth(d.png, d.info), color_type = png_get_color_type(d.png, d.info);
   d.width = png_get_image_width(d.png, d.info);
   d.height = png_get_image_height(d.png, d.info);
-  if (!plausible_image_size(d.width, d.height)) {
-    d.too_large = true;
-    return true;
-  }
+  if (!plausible_image_size(d.width, d.height)) return true;  // decode_png names the size
   if (depth) {
     if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY) {
       d.wrong_bits = bit_depth;
@@ -198,10 +194,12 @@ void jpeg_no_output(j_common_ptr) {}
 struct JpegDecode {
   jpeg_decompress_struct jpeg{};
   JpegErrors errors{};
-  bool cmyk = false;
 
   ~JpegDecode() { jpeg_destroy_decompress(&jpeg); }
 };
+
+// Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
+bool is_cmyk(const jpeg_decompress_struct& jpeg) { return jpeg.jpeg_color_space == JCS_CMYK || jpeg.jpeg_color_space == JCS_YCCK; }
 
 // Reads the JPEG of `d` into `color` (resized to it). False when libjpeg reported an error
 // (d.errors.message).
@@ -211,8 +209,7 @@ bool read_jpeg(JpegDecode& d, const std::vector<std::uint8_t>& bytes, ColorImage
   jpeg_mem_src(&d.jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&d.jpeg, TRUE);
   d.jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
-  d.cmyk = d.jpeg.jpeg_color_space == JCS_CMYK || d.jpeg.jpeg_color_space == JCS_YCCK;
-  if (!plausible_image_size(d.jpeg.image_width, d.jpeg.image_height) || d.cmyk) return true;
+  if (!plausible_image_size(d.jpeg.image_width, d.jpeg.image_height) || is_cmyk(d.jpeg)) return true;  // decode_jpeg names either
   jpeg_start_decompress(&d.jpeg);
   color = ColorImage(static_cast<int>(d.jpeg.output_width), static_cast<int>(d.jpeg.output_height));
   static_assert(sizeof(Rgb8) == 3);
@@ -232,8 +229,7 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
   d.errors.manager.output_message = jpeg_no_output;
   if (!read_jpeg(d, bytes, color)) throw_undecodable(source, d.errors.message);
   check_image_size(d.jpeg.image_width, d.jpeg.image_height, source);
-  // Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
-  if (d.cmyk) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
+  if (is_cmyk(d.jpeg)) throw InvalidInput(source + ": colour space: a CMYK JPEG is not a camera image (colour must be RGB or grey)");
 }
 
 }  // namespace

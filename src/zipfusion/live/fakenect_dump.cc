@@ -79,10 +79,10 @@ std::vector<FakenectIndexEntry> parse_fakenect_index(const std::string& text, co
     entry.file = line;
     // fakenect parses "%c-%lf-%u-%*s"; the dash after the timestamp is optional (".pgm" follows).
     char* cursor = nullptr;
-    // A file name: at most 255 bytes (NAME_MAX), so a longer line names no file, and would be
-    // quoted whole in the stream's end reason.
-    // fakenect reads the name with scanf's %s, and opens it in the dump folder: printable ASCII
-    // without spaces or '/', after a letter for the type (a NUL "type" cut the name short).
+    // A file name in the dump folder, as fakenect reads it with scanf's %s: a letter for the type
+    // (a NUL "type" cut the name short), then printable ASCII without spaces or '/', at most 255
+    // bytes (NAME_MAX; a longer line names no file, and would be quoted whole in the stream's end
+    // reason).
     const auto name_byte = [](char c) { return c > 0x20 && c < 0x7f && c != '/'; };
     bool ok = line.size() > 2 && line.size() <= 255 && std::isalpha(static_cast<unsigned char>(line[0])) && line[1] == '-' &&
               std::all_of(line.begin(), line.end(), name_byte);
