@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <jpeglib.h>
+#include <zlib.h>
+
+#include <cstdlib>
 #include <opencv2/imgcodecs.hpp>
 
 #include "zipfusion/core/error.h"
@@ -348,6 +352,70 @@ TEST(ColorImage, CorruptJpegsAndPngsAreErrorsAndPrintNothing) {
     EXPECT_EQ(::testing::internal::GetCapturedStderr(), "") << name;
     EXPECT_EQ(error.rfind(std::string(name) + ": cannot decode image (corrupt or truncated): ", 0), 0u) << error;
     EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  }
+}
+
+// A 4×4 CMYK JPEG, written by libjpeg itself (OpenCV writes no CMYK).
+std::vector<std::uint8_t> cmyk_jpeg() {
+  jpeg_compress_struct jpeg{};
+  jpeg_error_mgr errors{};
+  jpeg.err = jpeg_std_error(&errors);
+  jpeg_create_compress(&jpeg);
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  jpeg_mem_dest(&jpeg, &buffer, &size);
+  jpeg.image_width = 4;
+  jpeg.image_height = 4;
+  jpeg.input_components = 4;
+  jpeg.in_color_space = JCS_CMYK;
+  jpeg_set_defaults(&jpeg);
+  jpeg_start_compress(&jpeg, TRUE);
+  std::vector<JSAMPLE> row(16, 100);
+  while (jpeg.next_scanline < jpeg.image_height) {
+    JSAMPROW rows[] = {row.data()};
+    jpeg_write_scanlines(&jpeg, rows, 1);
+  }
+  jpeg_finish_compress(&jpeg);
+  jpeg_destroy_compress(&jpeg);
+  std::vector<std::uint8_t> bytes(buffer, buffer + size);
+  std::free(buffer);
+  return bytes;
+}
+
+// Sizes no camera has (checked before any pixel is allocated), and a CMYK JPEG, are named as such
+// rather than as corrupt files.
+TEST(ColorImage, ImplausibleSizesAndCmykAreNamed) {
+  cv::Mat bgr(2, 2, CV_8UC3, cv::Scalar(10, 20, 30));
+  std::vector<std::uint8_t> png, jpeg;
+  ASSERT_TRUE(cv::imencode(".png", bgr, png));
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg));
+  // PNG: IHDR's width (bytes 16–19, big-endian) set to 40000, its CRC (over bytes 12–28) redone.
+  png[16] = 0, png[17] = 0, png[18] = 40000 >> 8, png[19] = 40000 & 0xff;
+  const std::uint32_t crc = static_cast<std::uint32_t>(::crc32(::crc32(0, nullptr, 0), png.data() + 12, 17));
+  for (int i = 0; i < 4; ++i) png[29 + i] = static_cast<std::uint8_t>(crc >> (24 - 8 * i));
+  // JPEG: the baseline frame header's (FF C0) width, 5 bytes after its length, set to 40000.
+  size_t sof = 2;
+  while (sof + 1 < jpeg.size() && !(jpeg[sof] == 0xFF && jpeg[sof + 1] == 0xC0)) ++sof;
+  ASSERT_LT(sof + 8, jpeg.size());
+  jpeg[sof + 7] = 40000 >> 8, jpeg[sof + 8] = 40000 & 0xff;
+  const std::pair<std::vector<std::uint8_t>, std::string> cases[] = {
+      {png, "wide.png: image size: 40000x2 is not a plausible camera image"},
+      {jpeg, "wide.jpg: image size: 40000x2 is not a plausible camera image"},
+      {cmyk_jpeg(), "cmyk.jpg: colour space: a CMYK JPEG is not a camera image"}};
+  for (const auto& [bytes, expected] : cases) {
+    const std::string source = expected.substr(0, expected.find(':'));
+    try {
+      decode_color_image(bytes, source);
+      ADD_FAILURE() << expected;
+    } catch (const InvalidInput& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(expected, 0), 0u) << e.what();
+    }
+  }
+  try {
+    decode_depth_png(png, "wide.png");
+    ADD_FAILURE() << "a 40000-pixel-wide depth PNG was decoded";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("wide.png: image size: 40000x2", 0), 0u) << e.what();
   }
 }
 
