@@ -110,8 +110,8 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--frames", args->frames, "Frames A:B to draw from (A included, B excluded; default all)");
   cmd->add_option("--max-frames", args->max_frames, "Frames used, spread evenly over --frames")->capture_default_str();
   cmd->add_option("--rig", args->rig, "Start from the poses of this rig.json instead of the capture's");
-  cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth subsampled by 2^L")->capture_default_str();
-  cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution)")->capture_default_str();
+  cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth sampled every 2^L pixels of a 640x480 Kinect (every 2^L*f/580 of a camera of focal length f)")->capture_default_str();
+  cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution; so is 1 for 320x240)")->capture_default_str();
   cmd->add_option("--iterations", o.iterations_per_level, "Iterations per level")->capture_default_str();
   cmd->add_option("--start-distance", o.start_distance_m, "Correspondence distance at the first iteration, metres")->capture_default_str();
   cmd->add_option("--end-distance", o.end_distance_m, "Correspondence distance at the last iteration, metres")->capture_default_str();

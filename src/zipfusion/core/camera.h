@@ -13,6 +13,11 @@
 
 namespace zipfusion {
 
+//! The focal length, in pixels, of a Kinect v1's depth camera at 640×480: what options given in
+//! pixels (the SDC threshold, registration's levels) are set for; a camera of focal length f
+//! scales them by f/580.
+inline constexpr double kKinectV1DepthFocalPx = 580.0;
+
 struct Intrinsics {
   int width = 0;    // pixels
   int height = 0;   // pixels

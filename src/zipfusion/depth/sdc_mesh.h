@@ -35,7 +35,7 @@ enum TriangleBit : std::uint8_t { kUpperTriangle = 1, kLowerTriangle = 2 };
 //! 580/f times as far apart in angle, and a surface's slope makes the depth step between them grow
 //! alike; so does the disparity's quantisation where disparity is measured at the delivered
 //! resolution (as `synth` renders it). sdc_depth_jump gives each camera its threshold.
-inline constexpr double kSdcReferenceFocalPx = 580.0;
+inline constexpr double kSdcReferenceFocalPx = kKinectV1DepthFocalPx;
 
 //! The SDC threshold of a camera with intrinsics k, from `reference_jump_m`, the threshold for a
 //! focal length of kSdcReferenceFocalPx: scaled by 580/f (f = max(fx, fy), the closer-spaced

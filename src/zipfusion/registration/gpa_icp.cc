@@ -239,12 +239,15 @@ void trim(std::vector<Residual>& residuals, double fraction) {
 
 using Clouds = std::vector<std::vector<std::unique_ptr<Cloud>>>;  // [frame][camera]
 
+// Levels count angles, not pixels: level L samples a camera every 2^L pixels of a Kinect v1 at
+// 640×480 (f = 580 px), so every 2^L·f/580 of its own (at least 1). At 320×240, pixel levels ran
+// 40×30 → 160×120 and the coarsest, with a few dozen samples of the subject per camera, could not
+// converge (docs/design.md, "Registration").
+int scaled_pixels(double pixels_at_reference, const Intrinsics& k) {
+  return std::max(1, static_cast<int>(std::lround(pixels_at_reference * std::max(k.fx, k.fy) / kKinectV1DepthFocalPx)));
+}
+
 Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, int level, const RegistrationOptions& o) {
-  // Coarse levels only have to converge: their fit spans the whole stride, so no pixel is ignored
-  // and normals are smooth. The finest level decides the accuracy, where a smaller window bends
-  // curved surfaces less (docs/design.md, "Registration").
-  const int stride = 1 << level;
-  const int fit_radius = level == o.finest_level ? o.fit_radius_px : std::max(o.fit_radius_px, stride);
   const int cameras = static_cast<int>(rig.cameras.size());
   const int frames = static_cast<int>(depth_m.size());
   Clouds clouds(frames);
@@ -253,7 +256,15 @@ Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>&
       0, frames * cameras,
       [&](int fc) {
         const int f = fc / cameras, c = fc % cameras;
-        clouds[f][c] = make_cloud(depth_m[f][c], rig.cameras[c].depth_intrinsics, 1 << level, fit_radius, o);
+        const Intrinsics& k = rig.cameras[c].depth_intrinsics;
+        const int stride = scaled_pixels(std::ldexp(1.0, level), k);
+        // Coarse levels only have to converge: their fit spans the whole stride, so no pixel is
+        // ignored and normals are smooth. The finest level decides the accuracy, where a smaller
+        // window bends curved surfaces less; it stays fit_radius_px pixels whatever the focal
+        // length, as a camera with fewer pixels measures each more coarsely (the disparity's
+        // quantisation) and needs as many to average.
+        const int fit_radius = level == o.finest_level ? o.fit_radius_px : std::max(o.fit_radius_px, stride);
+        clouds[f][c] = make_cloud(depth_m[f][c], k, stride, fit_radius, o);
       },
       o.num_threads);
   return clouds;
@@ -262,16 +273,30 @@ Clouds make_clouds(const Rig& rig, const std::vector<std::vector<Image<float>>>&
 struct Accumulated {
   std::vector<double> sum_sq;  // per camera
   std::vector<int> count;
-  std::vector<char> pair_matched;  // [a · cameras + b], a < b: the pair had enough correspondences in a frame
+  std::vector<char> pair_matched;  // [a · cameras + b], a < b: the pair had enough correspondences over the frames
+};
+
+// One pair's correspondences over all frames, summed: its two cameras' blocks of the normal
+// equations, [a; b] (12 unknowns), and its squared residuals.
+struct PairSums {
+  Eigen::Matrix<double, 12, 12> h = Eigen::Matrix<double, 12, 12>::Zero();
+  Eigen::Matrix<double, 12, 1> g = Eigen::Matrix<double, 12, 1>::Zero();
+  double sum_sq = 0;
+  int count = 0;
 };
 
 // All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
-// normal equations H x = −g.
+// normal equations H x = −g. A pair counts when it has min_correspondences over all the frames
+// together, not in each: at coarse levels of small depth maps (40×30 samples of a 320×240 camera)
+// or for cameras that overlap a little, each frame gives a few dozen, and a per-frame minimum
+// left those pairs, and with them whole cameras, out of the coarse levels that have to converge.
 Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const PairWeighting& weighting, const RegistrationOptions& o, Eigen::MatrixXd* h,
                        Eigen::VectorXd* g, bool trimmed) {
   const int cameras = static_cast<int>(poses.world_from_depth.size());
   Accumulated acc{std::vector<double>(cameras, 0), std::vector<int>(cameras, 0), std::vector<char>(static_cast<size_t>(cameras) * cameras, 0)};
+  std::vector<PairSums> pairs(static_cast<size_t>(cameras) * cameras);
   std::vector<Residual> residuals;
+  const int rows = o.point_to_plane ? 1 : 3;
   for (auto& frame : clouds) {
     for (int c = 0; c < cameras; ++c) {
       if (!frame[c]->empty()) to_world(*frame[c], poses.world_from_depth[c]);
@@ -280,29 +305,38 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
       for (int b = a + 1; b < cameras; ++b) {
         if (frame[a]->empty() || frame[b]->empty()) continue;
         match_pair(*frame[a], *frame[b], a, b, poses, max_distance, weighting, o, residuals);
-        if (static_cast<int>(residuals.size()) < o.min_correspondences) continue;
-        acc.pair_matched[static_cast<size_t>(a) * cameras + b] = 1;
         if (trimmed) trim(residuals, o.trim_fraction);
-        const int rows = o.point_to_plane ? 1 : 3;
+        PairSums& sums = pairs[static_cast<size_t>(a) * cameras + b];
         for (const Residual& res : residuals) {
-          const double e2 = res.r.squaredNorm();
-          acc.sum_sq[a] += e2;
-          acc.sum_sq[b] += e2;
-          ++acc.count[a];
-          ++acc.count[b];
+          sums.sum_sq += res.r.squaredNorm();
+          ++sums.count;
           if (h == nullptr) continue;
-          const Eigen::Matrix<double, 3, 6> ja = res.ja.cast<double>(), jb = res.jb.cast<double>();
+          Eigen::Matrix<double, 3, 12> j;
+          j << res.ja.cast<double>(), res.jb.cast<double>();
           const Eigen::Vector3d r = res.r.cast<double>();
-          const double w = res.weight;
-          const int ia = 6 * a, ib = 6 * b;
-          h->block<6, 6>(ia, ia) += w * ja.topRows(rows).transpose() * ja.topRows(rows);
-          h->block<6, 6>(ib, ib) += w * jb.topRows(rows).transpose() * jb.topRows(rows);
-          h->block<6, 6>(ia, ib) += w * ja.topRows(rows).transpose() * jb.topRows(rows);
-          h->block<6, 6>(ib, ia) += w * jb.topRows(rows).transpose() * ja.topRows(rows);
-          g->segment<6>(ia) += w * ja.topRows(rows).transpose() * r.head(rows);
-          g->segment<6>(ib) += w * jb.topRows(rows).transpose() * r.head(rows);
+          sums.h.noalias() += res.weight * j.topRows(rows).transpose() * j.topRows(rows);
+          sums.g.noalias() += res.weight * j.topRows(rows).transpose() * r.head(rows);
         }
       }
+    }
+  }
+  for (int a = 0; a < cameras; ++a) {
+    for (int b = a + 1; b < cameras; ++b) {
+      const PairSums& sums = pairs[static_cast<size_t>(a) * cameras + b];
+      if (sums.count < o.min_correspondences) continue;
+      acc.pair_matched[static_cast<size_t>(a) * cameras + b] = 1;
+      acc.sum_sq[a] += sums.sum_sq;
+      acc.sum_sq[b] += sums.sum_sq;
+      acc.count[a] += sums.count;
+      acc.count[b] += sums.count;
+      if (h == nullptr) continue;
+      const int ia = 6 * a, ib = 6 * b;
+      h->block<6, 6>(ia, ia) += sums.h.block<6, 6>(0, 0);
+      h->block<6, 6>(ib, ib) += sums.h.block<6, 6>(6, 6);
+      h->block<6, 6>(ia, ib) += sums.h.block<6, 6>(0, 6);
+      h->block<6, 6>(ib, ia) += sums.h.block<6, 6>(6, 0);
+      g->segment<6>(ia) += sums.g.head<6>();
+      g->segment<6>(ib) += sums.g.tail<6>();
     }
   }
   return acc;

@@ -15,7 +15,8 @@
 //! are dropped, the worst residuals of each pair are trimmed, the floor just below the capture
 //! volume joins in (static, it fixes the tilt; counted once over the frames), and several frames
 //! (where the subject has moved) add their correspondences to the same solve.
-//! Coarse to fine: depth subsampled by 2^L, at most `iterations_per_level` per level (paper: 4).
+//! Coarse to fine: depth sampled every 2^L·f/580 pixels (2^L for a Kinect v1 at 640×480, so the
+//! levels are angles, whatever the resolution), at most `iterations_per_level` per level (paper: 4).
 //!
 //! Thread safety: the functions are pure; parallel inside (`num_threads`).
 
@@ -38,8 +39,8 @@ enum class RegistrationSurface {
 };
 
 struct RegistrationOptions {
-  int coarsest_level = 3;          // L: the first level uses depth subsampled by 2^L (paper: coarse to fine); 80×60 converges from 2°/5 cm
-  int finest_level = 1;            // the last level; 0 = full resolution (no more accurate, 4× slower)
+  int coarsest_level = 3;          // L: the first level samples every 2^L·f/580 pixels (paper: coarse to fine); 80×60 of a 640×480 Kinect converges from 2°/5 cm
+  int finest_level = 1;            // the last level; 0 = full resolution (no more accurate at 640×480, 4× slower)
   int iterations_per_level = 4;    // paper: at most 4
   double start_distance_m = 0.15;  // metres: correspondence distance at the first iteration (covers ~2°/5 cm)
   double end_distance_m = 0.015;   // metres: at the last iteration (geometric shrink in between)
@@ -58,7 +59,7 @@ struct RegistrationOptions {
   ForegroundOptions foreground;
   double below_volume_m = 0.3;     // metres: the volume crop reaches this far below the volume, so the floor (static, seen by all) pins the cameras' tilt
   bool floor_counts_once = true;   // the floor's correspondences (both points below the volume's min z, world z up; none without a volume) weigh 1/F over F frames: it is the same in every frame set
-  int min_correspondences = 50;    // a pair with fewer in a frame does not count
+  int min_correspondences = 50;    // a pair with fewer over all its frames does not count
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
   int num_threads = 0;             // 0 = all hardware threads
 
