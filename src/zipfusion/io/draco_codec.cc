@@ -5,7 +5,11 @@
 #include <draco/mesh/mesh.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
+#include <iterator>
+#include <limits>
 
 #include "zipfusion/core/error.h"
 
@@ -35,9 +39,32 @@ QuantizationBox quantization_box(const TriangleMesh& mesh, const std::optional<B
   return {lo, std::max((hi - lo).maxCoeff(), 1e-6f)};
 }
 
+bool draco_can_quantise(const QuantizationBox& box) {
+  // Draco quantises over the box without checking it (fuzzing found both): an infinite range
+  // crashed its encoder, and its decoder's q · (range / (2^bits − 1)) rounds past a float's
+  // largest value for a range near it (3.4e38 decoded to infinities). A quarter of the largest
+  // float keeps the product and the sum with the origin finite.
+  constexpr float kMost = std::numeric_limits<float>::max() / 4;
+  return box.origin.allFinite() && std::isfinite(box.range) && box.range > 0 && box.range <= kMost &&
+         (box.origin.array().abs() + box.range <= kMost).all();
+}
+
 std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, const DracoOptions& options) {
   options.validate();
-  if (mesh.triangles.empty()) return {};  // Draco has no encoding of an empty mesh
+  // Draco cannot encode a face with a repeated corner, and refuses a mesh of only those (fuzzing
+  // found the refusal): they are left out, and a mesh with none else is empty.
+  auto repeats_a_corner = [](const Eigen::Vector3i& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; };
+  const auto repeats = std::count_if(mesh.triangles.begin(), mesh.triangles.end(), repeats_a_corner);
+  if (repeats == static_cast<std::ptrdiff_t>(mesh.triangles.size())) return {};  // Draco has no encoding of an empty mesh
+  std::vector<Eigen::Vector3i> without_repeats;  // a copy only when there are some
+  if (repeats > 0) std::remove_copy_if(mesh.triangles.begin(), mesh.triangles.end(), std::back_inserter(without_repeats), repeats_a_corner);
+  const std::vector<Eigen::Vector3i>& triangles = repeats > 0 ? without_repeats : mesh.triangles;
+  if (!draco_can_quantise(box)) {
+    char what[160];
+    std::snprintf(what, sizeof what, "draco: the quantisation box (origin %g %g %g, range %g) is not within a quarter of a float's range", box.origin.x(),
+                  box.origin.y(), box.origin.z(), box.range);
+    throw InvalidInput(what);
+  }
   draco::Mesh out;
   const int vertices = static_cast<int>(mesh.positions.size());
   out.set_num_points(vertices);
@@ -51,9 +78,9 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
     draco::PointAttribute* colors = out.attribute(out.AddAttribute(color, true, vertices));
     for (int i = 0; i < vertices; ++i) colors->SetAttributeValue(draco::AttributeValueIndex(i), &mesh.colors[i]);
   }
-  out.SetNumFaces(mesh.triangles.size());
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    const Eigen::Vector3i& tri = mesh.triangles[t];
+  out.SetNumFaces(triangles.size());
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = triangles[t];
     out.SetFace(draco::FaceIndex(static_cast<std::uint32_t>(t)),
                 {draco::PointIndex(tri[0]), draco::PointIndex(tri[1]), draco::PointIndex(tri[2])});
   }
@@ -67,29 +94,110 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
   return std::string(buffer.data(), buffer.size());
 }
 
+namespace {
+
+// Draco (1.5.5, Debian's) allocates what a stream's header claims before reading any further: 103
+// bytes claiming 175 million vertices took 15 s and gigabytes (fuzzing found it). The counts of a
+// bitstream 2.2 mesh (what Draco 1.5 writes; the layout of Draco's bitstream specification) are
+// read here first and bounded.
+constexpr std::uint32_t kMostDracoElements = 1u << 25;  // vertices, faces or symbols: 33.5 million
+
+class DracoHeaderReader {
+ public:
+  DracoHeaderReader(const std::string& bytes, const std::string& source) : bytes_(bytes), source_(source) {}
+
+  std::uint8_t byte(const char* field) {
+    if (at_ >= bytes_.size()) throw InvalidInput(source_ + ": not a Draco mesh: ends before " + field);
+    return static_cast<std::uint8_t>(bytes_[at_++]);
+  }
+  // A LEB128 count (Draco's varUI32), at most kMostDracoElements.
+  std::uint32_t count(const char* field) {
+    std::uint64_t value = 0;
+    for (int shift = 0;; shift += 7) {
+      const std::uint8_t b = byte(field);
+      if (shift > 28) throw InvalidInput(source_ + ": not a Draco mesh: " + field + " is not a 32-bit number");
+      value |= static_cast<std::uint64_t>(b & 0x7f) << shift;
+      if (!(b & 0x80)) break;
+    }
+    if (value > kMostDracoElements) {
+      throw InvalidInput(source_ + ": Draco " + field + " " + std::to_string(value) + " is more than " + std::to_string(kMostDracoElements));
+    }
+    return static_cast<std::uint32_t>(value);
+  }
+
+ private:
+  const std::string& bytes_;
+  const std::string& source_;
+  size_t at_ = 0;
+};
+
+void check_draco_header(const std::string& bytes, const std::string& source) {
+  DracoHeaderReader in(bytes, source);
+  for (const char c : std::string("DRACO")) {
+    if (in.byte("the magic") != static_cast<std::uint8_t>(c)) throw InvalidInput(source + ": not a Draco mesh: no DRACO magic");
+  }
+  const int major = in.byte("the version"), minor = in.byte("the version");
+  if (major != 2 || minor != 2) {
+    throw InvalidInput(source + ": Draco bitstream " + std::to_string(major) + "." + std::to_string(minor) + ": only 2.2 (Draco 1.5) is read");
+  }
+  if (in.byte("the encoder type") != 1) throw InvalidInput(source + ": Draco: not a triangle mesh");
+  const int method = in.byte("the encoder method");
+  const int flags = in.byte("the flags") | (in.byte("the flags") << 8);
+  if (flags & 0x8000) throw InvalidInput(source + ": Draco: metadata is not read");
+  if (method == 0) {  // sequential
+    in.count("face count");
+    in.count("point count");
+  } else if (method == 1) {  // Edgebreaker
+    in.byte("the traversal type");
+    in.count("new vertex count");
+    in.count("vertex count");
+    in.count("face count");
+    in.byte("the attribute data count");
+    in.count("symbol count");
+    in.count("split symbol count");
+  } else {
+    throw InvalidInput(source + ": Draco encoder method " + std::to_string(method) + " is not one of Draco's");
+  }
+}
+
+}  // namespace
+
 TriangleMesh decode_draco(const std::string& bytes, const std::string& source) {
   if (bytes.empty()) return {};
+  check_draco_header(bytes, source);
   draco::DecoderBuffer buffer;
   buffer.Init(bytes.data(), bytes.size());
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) throw InvalidInput(source + ": not a Draco mesh: " + decoded.status().error_msg());
   const std::unique_ptr<draco::Mesh> in = std::move(decoded).value();
+  // Values are read as stored (32-bit float positions, 8-bit colours), not through Draco's
+  // conversions, which read the attribute's `normalized` flag as a bool whatever byte the stream
+  // held (undefined behaviour that fuzzing found).
   const draco::PointAttribute* positions = in->GetNamedAttribute(draco::GeometryAttribute::POSITION);
-  if (positions == nullptr || positions->num_components() != 3) throw InvalidInput(source + ": POSITION: missing or not 3-D");
+  if (positions == nullptr || positions->num_components() != 3 || positions->data_type() != draco::DT_FLOAT32) {
+    throw InvalidInput(source + ": POSITION: missing or not three 32-bit floats");
+  }
   const draco::PointAttribute* colors = in->GetNamedAttribute(draco::GeometryAttribute::COLOR);
+  if (colors != nullptr && (colors->num_components() < 3 || colors->num_components() > 4 || colors->data_type() != draco::DT_UINT8)) {
+    throw InvalidInput(source + ": COLOR: not three or four 8-bit values");
+  }
   TriangleMesh mesh;
+  if (in->num_points() > static_cast<std::uint32_t>(std::numeric_limits<int>::max())) throw InvalidInput(source + ": more points than an int counts");
   const int points = static_cast<int>(in->num_points());
   mesh.positions.resize(points);
   if (colors != nullptr) mesh.colors.resize(points);
   for (int i = 0; i < points; ++i) {
     const draco::PointIndex point(i);
-    if (!positions->ConvertValue<float, 3>(positions->mapped_index(point), mesh.positions[i].data())) {
+    std::array<float, 3> xyz;
+    if (!positions->GetValue<float, 3>(positions->mapped_index(point), &xyz)) {
       throw InvalidInput(source + ": POSITION: value " + std::to_string(i) + " cannot be read");
     }
+    mesh.positions[i] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+    if (!mesh.positions[i].allFinite()) throw InvalidInput(source + ": POSITION: value " + std::to_string(i) + " is not finite");
     if (colors != nullptr) {
-      std::uint8_t rgb[4] = {128, 128, 128, 255};
-      if (!colors->ConvertValue<std::uint8_t>(colors->mapped_index(point), std::min<int>(colors->num_components(), 4), rgb)) {
+      std::array<std::uint8_t, 3> rgb;
+      if (!colors->GetValue<std::uint8_t, 3>(colors->mapped_index(point), &rgb)) {
         throw InvalidInput(source + ": COLOR: value " + std::to_string(i) + " cannot be read");
       }
       mesh.colors[i] = {rgb[0], rgb[1], rgb[2]};
@@ -98,6 +206,13 @@ TriangleMesh decode_draco(const std::string& bytes, const std::string& source) {
   mesh.triangles.resize(in->num_faces());
   for (draco::FaceIndex f(0); f < in->num_faces(); ++f) {
     const draco::Mesh::Face& face = in->face(f);
+    // Draco does not check that a face's corners are among the points it decoded.
+    for (const draco::PointIndex& corner : face) {
+      if (corner.value() >= in->num_points()) {
+        throw InvalidInput(source + ": face " + std::to_string(f.value()) + ": corner " + std::to_string(corner.value()) + " is not one of the " +
+                           std::to_string(points) + " points");
+      }
+    }
     mesh.triangles[f.value()] = Eigen::Vector3i(static_cast<int>(face[0].value()), static_cast<int>(face[1].value()), static_cast<int>(face[2].value()));
   }
   return mesh;

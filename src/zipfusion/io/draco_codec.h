@@ -42,15 +42,22 @@ struct QuantizationBox {
 //! reach outside the volume when cropping is off). Without a volume, the mesh's bounding cube.
 QuantizationBox quantization_box(const TriangleMesh& mesh, const std::optional<Box3d>& volume);
 
+//! Whether Draco's quantisation over `box` stays within floats: a finite, positive range, and the
+//! range and the box's farthest corner from 0 within a quarter of the largest float (8.5e37).
+bool draco_can_quantise(const QuantizationBox& box);
+
 //! Encodes `mesh` (a position per vertex, optional colours, triangles); throws InvalidInput for
-//! invalid options and IoError when Draco fails. A mesh without triangles (nobody in view) is
-//! the empty buffer, which Draco has no encoding for. Triangles that quantisation makes
-//! degenerate (two corners on one grid point) are dropped by Draco.
+//! invalid options or a box Draco cannot quantise (draco_can_quantise), and IoError when Draco
+//! fails. Triangles with a
+//! repeated corner are left out (Draco cannot encode them); a mesh without other triangles
+//! (nobody in view) is the empty buffer, which Draco has no encoding for. Triangles whose corners
+//! quantise to one grid point are kept.
 std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, const DracoOptions& options = {});
 
-//! Decodes what encode_draco wrote (or any Draco triangle mesh with positions and optional
-//! 8-bit colours; the empty buffer is the empty mesh); throws InvalidInput naming `source` for
-//! bytes that are not one.
+//! Decodes what encode_draco wrote (or any Draco triangle mesh of bitstream 2.2 without metadata,
+//! with 32-bit float positions and optional 8-bit colours, of at most 2^25 vertices and faces;
+//! the empty buffer is the empty mesh); throws InvalidInput naming `source` for bytes that are not
+//! one, checking the header's counts before Draco allocates what they claim.
 TriangleMesh decode_draco(const std::string& bytes, const std::string& source = "draco buffer");
 
 }  // namespace zipfusion

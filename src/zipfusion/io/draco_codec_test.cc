@@ -87,5 +87,63 @@ TEST(Draco, EmptyMeshesAndGarbageAreHandled) {
   EXPECT_THROW(encode_draco(empty, {}, {.position_bits = 0}), InvalidInput);
 }
 
+// Draco allocates what a header claims: 103 bytes claiming 175 million vertices took 15 s and
+// gigabytes (fuzzing found it). The counts are bounded before Draco reads the stream.
+TEST(Draco, HugeCountsInTheHeaderAreRefusedBeforeDecoding) {
+  // Bitstream 2.2, a mesh by Edgebreaker, no flags; traversal 0, 1 new vertex, then 2^26 vertices.
+  const std::string header("DRACO\x02\x02\x01\x01\x00\x00\x00\x01\x80\x80\x80\x20\x01\x01\x01\x00", 20);
+  try {
+    decode_draco(header, "frame 9");
+    FAIL() << "a header of 2^26 vertices was decoded";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 9: Draco vertex count 67108864 is more than 33554432"), std::string::npos) << e.what();
+  }
+  // The counts our own encoder writes, both methods, pass.
+  const TriangleMesh sheet = wavy_sheet(20, 20);
+  for (const int level : {0, 10}) {
+    EXPECT_EQ(decode_draco(encode_draco(sheet, quantization_box(sheet, std::nullopt), {.compression_level = level})).triangles.size(), sheet.triangles.size());
+  }
+}
+
+// Draco cannot encode a triangle with a repeated corner, and refused a mesh of only those (fuzzing
+// found it): they are left out.
+TEST(Draco, TrianglesWithARepeatedCornerAreLeftOut) {
+  TriangleMesh mesh = wavy_sheet(4, 4);
+  const size_t good = mesh.triangles.size();
+  mesh.triangles.push_back({0, 0, 1});
+  mesh.triangles.push_back({2, 3, 2});
+  const QuantizationBox box = quantization_box(mesh, std::nullopt);
+  EXPECT_EQ(decode_draco(encode_draco(mesh, box)).triangles.size(), good);
+  mesh.triangles.erase(mesh.triangles.begin(), mesh.triangles.begin() + static_cast<std::ptrdiff_t>(good));
+  EXPECT_TRUE(encode_draco(mesh, box).empty());
+}
+
+// Positions farther apart than a float holds make the quantisation range infinite, which crashed
+// Draco's encoder (fuzzing found it): refused, one line, nothing encoded.
+TEST(Draco, RangesPastWhatDracosFloatsHoldAreRefused) {
+  TriangleMesh mesh = wavy_sheet(4, 4);
+  mesh.positions[0].z() = 3e38f;
+  mesh.positions[1].z() = -3e38f;
+  const QuantizationBox box = quantization_box(mesh, std::nullopt);
+  EXPECT_FALSE(std::isfinite(box.range));
+  try {
+    encode_draco(mesh, box);
+    FAIL() << "an infinite quantisation range was encoded";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("is not within a quarter of a float's range"), std::string::npos) << e.what();
+  }
+  // A range near the largest float decoded to infinities (Draco's q · range / (2^bits − 1) rounds
+  // past it): refused too.
+  mesh.positions[1].z() = 0;
+  EXPECT_FALSE(draco_can_quantise(quantization_box(mesh, std::nullopt)));
+  EXPECT_THROW(encode_draco(mesh, quantization_box(mesh, std::nullopt)), InvalidInput);
+  // Within it, the far positions come back finite.
+  mesh.positions[0].z() = 8e37f;
+  ASSERT_TRUE(draco_can_quantise(quantization_box(mesh, std::nullopt)));
+  const TriangleMesh back = decode_draco(encode_draco(mesh, quantization_box(mesh, std::nullopt)));
+  ASSERT_EQ(back.triangles.size(), mesh.triangles.size());
+  for (const Eigen::Vector3f& p : back.positions) EXPECT_TRUE(p.allFinite()) << p.transpose();
+}
+
 }  // namespace
 }  // namespace zipfusion
