@@ -32,13 +32,17 @@ void check_draco(const std::string& bytes) {
   if (!mesh) return;
   check_valid(*mesh);
   const QuantizationBox box = quantization_box(*mesh, std::nullopt);
+  // The level from the last byte, so that both of Draco's methods (sequential at 0) are run.
+  const DracoOptions options{.compression_level = bytes.empty() ? 4 : static_cast<unsigned char>(bytes.back()) % 11};
   std::string again;
   try {
-    again = encode_draco(*mesh, box);
+    again = encode_draco(*mesh, box, options);
   } catch (const InvalidInput& e) {
     // The one refusal allowed: a box Draco cannot quantise in floats (positions finite each).
     if (draco_can_quantise(box)) fail(std::string("Draco encoding refused a decoded mesh: ") + e.what());
     return;
+  } catch (const IoError& e) {
+    fail(std::string("Draco failed to encode a decoded mesh: ") + e.what());
   }
   const TriangleMesh round_trip = must_decode([&] { return decode_draco(again, kSource); }, "Draco");
   check_valid(round_trip);

@@ -51,8 +51,9 @@ bool draco_can_quantise(const QuantizationBox& box) {
 
 std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, const DracoOptions& options) {
   options.validate();
-  // Draco cannot encode a face with a repeated corner, and refuses a mesh of only those (fuzzing
-  // found the refusal): they are left out, and a mesh with none else is empty.
+  // Draco's Edgebreaker drops a face with a repeated corner and refuses a mesh of only those
+  // (fuzzing found the refusal): they are left out at every level, and a mesh with none else is
+  // empty.
   auto repeats_a_corner = [](const Eigen::Vector3i& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; };
   const auto repeats = std::count_if(mesh.triangles.begin(), mesh.triangles.end(), repeats_a_corner);
   if (repeats == static_cast<std::ptrdiff_t>(mesh.triangles.size())) return {};  // Draco has no encoding of an empty mesh
@@ -65,24 +66,37 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
                   box.origin.y(), box.origin.z(), box.range);
     throw InvalidInput(what);
   }
+  // Draco's sequential decoder (compression level 0) refused what its encoder wrote for points
+  // that no face uses (fuzzing found it): only the used vertices are encoded, in their order.
+  std::vector<int> point_of_vertex(mesh.positions.size(), -1);
+  for (const Eigen::Vector3i& t : triangles) point_of_vertex[t[0]] = point_of_vertex[t[1]] = point_of_vertex[t[2]] = 0;
+  int points = 0;
+  for (int& point : point_of_vertex) {
+    if (point == 0) point = points++;
+  }
   draco::Mesh out;
-  const int vertices = static_cast<int>(mesh.positions.size());
-  out.set_num_points(vertices);
+  out.set_num_points(points);
   draco::GeometryAttribute position;
   position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3, 0);
-  draco::PointAttribute* positions = out.attribute(out.AddAttribute(position, true, vertices));
-  for (int i = 0; i < vertices; ++i) positions->SetAttributeValue(draco::AttributeValueIndex(i), mesh.positions[i].data());
-  if (options.colors && mesh.has_colors()) {
+  draco::PointAttribute* positions = out.attribute(out.AddAttribute(position, true, points));
+  const bool colors = options.colors && mesh.has_colors();
+  draco::PointAttribute* color_attribute = nullptr;
+  if (colors) {
     draco::GeometryAttribute color;
     color.Init(draco::GeometryAttribute::COLOR, nullptr, 3, draco::DT_UINT8, true, 3, 0);
-    draco::PointAttribute* colors = out.attribute(out.AddAttribute(color, true, vertices));
-    for (int i = 0; i < vertices; ++i) colors->SetAttributeValue(draco::AttributeValueIndex(i), &mesh.colors[i]);
+    color_attribute = out.attribute(out.AddAttribute(color, true, points));
+  }
+  for (size_t i = 0; i < point_of_vertex.size(); ++i) {
+    if (point_of_vertex[i] < 0) continue;
+    const draco::AttributeValueIndex point(point_of_vertex[i]);
+    positions->SetAttributeValue(point, mesh.positions[i].data());
+    if (colors) color_attribute->SetAttributeValue(point, &mesh.colors[i]);
   }
   out.SetNumFaces(triangles.size());
   for (size_t t = 0; t < triangles.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];
-    out.SetFace(draco::FaceIndex(static_cast<std::uint32_t>(t)),
-                {draco::PointIndex(tri[0]), draco::PointIndex(tri[1]), draco::PointIndex(tri[2])});
+    out.SetFace(draco::FaceIndex(static_cast<std::uint32_t>(t)), {draco::PointIndex(point_of_vertex[tri[0]]), draco::PointIndex(point_of_vertex[tri[1]]),
+                                                                  draco::PointIndex(point_of_vertex[tri[2]])});
   }
   draco::Encoder encoder;
   const int speed = 10 - options.compression_level;
@@ -97,10 +111,11 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
 namespace {
 
 // Draco (1.5.5, Debian's) allocates what a stream's header claims before reading any further: 103
-// bytes claiming 175 million vertices took 15 s and gigabytes (fuzzing found it). The counts of a
-// bitstream 2.2 mesh (what Draco 1.5 writes; the layout of Draco's bitstream specification) are
-// read here first and bounded.
-constexpr std::uint32_t kMostDracoElements = 1u << 25;  // vertices, faces or symbols: 33.5 million
+// bytes claiming 175 million faces took 15 s and gigabytes (fuzzing found it). The counts of a
+// bitstream 2.2 mesh (what Draco 1.5 writes, in the order its decoders read them) are read here
+// first and bounded: 2^23 (8.4 million) is more than the separate meshes of ten 640×480 cameras
+// (6.1 million triangles), and Draco's tables for it take about 200 MB.
+constexpr std::uint32_t kMostDracoElements = 1u << 23;
 
 class DracoHeaderReader {
  public:
@@ -147,14 +162,18 @@ void check_draco_header(const std::string& bytes, const std::string& source) {
   if (method == 0) {  // sequential
     in.count("face count");
     in.count("point count");
-  } else if (method == 1) {  // Edgebreaker
+  } else if (method == 1) {  // Edgebreaker (2.2 has no count of new vertices, which 2.1 had)
     in.byte("the traversal type");
-    in.count("new vertex count");
-    in.count("vertex count");
+    const std::uint32_t vertices = in.count("vertex count");
     in.count("face count");
     in.byte("the attribute data count");
     in.count("symbol count");
-    in.count("split symbol count");
+    const std::uint32_t splits = in.count("split symbol count");
+    // Draco sizes its vertex tables for both together.
+    if (vertices + splits > kMostDracoElements) {
+      throw InvalidInput(source + ": Draco vertex and split symbol counts " + std::to_string(vertices) + " + " + std::to_string(splits) + " are more than " +
+                         std::to_string(kMostDracoElements));
+    }
   } else {
     throw InvalidInput(source + ": Draco encoder method " + std::to_string(method) + " is not one of Draco's");
   }

@@ -48,14 +48,14 @@ bool draco_can_quantise(const QuantizationBox& box);
 
 //! Encodes `mesh` (a position per vertex, optional colours, triangles); throws InvalidInput for
 //! invalid options or a box Draco cannot quantise (draco_can_quantise), and IoError when Draco
-//! fails. Triangles with a
-//! repeated corner are left out (Draco cannot encode them); a mesh without other triangles
-//! (nobody in view) is the empty buffer, which Draco has no encoding for. Triangles whose corners
-//! quantise to one grid point are kept.
+//! fails. Triangles with a repeated corner are left out (Draco's Edgebreaker drops them, and
+//! refuses a mesh of only those); a mesh without other triangles (nobody in view) is the empty
+//! buffer, which Draco has no encoding for. A triangle whose corners quantise to one grid point
+//! is kept. Vertices that no triangle uses are not encoded.
 std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, const DracoOptions& options = {});
 
 //! Decodes what encode_draco wrote (or any Draco triangle mesh of bitstream 2.2 without metadata,
-//! with 32-bit float positions and optional 8-bit colours, of at most 2^25 vertices and faces;
+//! with 32-bit float positions and optional 8-bit colours, of at most 2^23 vertices and faces;
 //! the empty buffer is the empty mesh); throws InvalidInput naming `source` for bytes that are not
 //! one, checking the header's counts before Draco allocates what they claim.
 TriangleMesh decode_draco(const std::string& bytes, const std::string& source = "draco buffer");

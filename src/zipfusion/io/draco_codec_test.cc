@@ -87,16 +87,21 @@ TEST(Draco, EmptyMeshesAndGarbageAreHandled) {
   EXPECT_THROW(encode_draco(empty, {}, {.position_bits = 0}), InvalidInput);
 }
 
-// Draco allocates what a header claims: 103 bytes claiming 175 million vertices took 15 s and
+// Draco allocates what a header claims: 103 bytes claiming 175 million faces took 15 s and
 // gigabytes (fuzzing found it). The counts are bounded before Draco reads the stream.
 TEST(Draco, HugeCountsInTheHeaderAreRefusedBeforeDecoding) {
-  // Bitstream 2.2, a mesh by Edgebreaker, no flags; traversal 0, 1 new vertex, then 2^26 vertices.
-  const std::string header("DRACO\x02\x02\x01\x01\x00\x00\x00\x01\x80\x80\x80\x20\x01\x01\x01\x00", 20);
-  try {
-    decode_draco(header, "frame 9");
-    FAIL() << "a header of 2^26 vertices was decoded";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("frame 9: Draco vertex count 67108864 is more than 33554432"), std::string::npos) << e.what();
+  // Bitstream 2.2, a mesh by Edgebreaker, no flags; traversal 0, 3 vertices, then 2^24 faces.
+  const std::string faces("DRACO\x02\x02\x01\x01\x00\x00\x00\x03\x80\x80\x80\x08\x00\x01\x00", 20);
+  // The same with 1 face, 1 symbol and 2^23 split symbols, which Draco adds to the vertices.
+  const std::string splits("DRACO\x02\x02\x01\x01\x00\x00\x00\x03\x01\x00\x01\x80\x80\x80\x04", 20);
+  for (const auto& [bytes, message] : {std::pair{faces, "frame 9: Draco face count 16777216 is more than 8388608"},
+                                       std::pair{splits, "frame 9: Draco vertex and split symbol counts 3 + 8388608 are more than 8388608"}}) {
+    try {
+      decode_draco(bytes, "frame 9");
+      ADD_FAILURE() << "decoded: " << message;
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
   }
   // The counts our own encoder writes, both methods, pass.
   const TriangleMesh sheet = wavy_sheet(20, 20);
@@ -105,17 +110,37 @@ TEST(Draco, HugeCountsInTheHeaderAreRefusedBeforeDecoding) {
   }
 }
 
-// Draco cannot encode a triangle with a repeated corner, and refused a mesh of only those (fuzzing
-// found it): they are left out.
+// Draco's Edgebreaker refused a mesh of only triangles with a repeated corner (fuzzing found it):
+// they are left out at every level. A triangle of three corners at one position is kept.
 TEST(Draco, TrianglesWithARepeatedCornerAreLeftOut) {
   TriangleMesh mesh = wavy_sheet(4, 4);
+  mesh.positions.push_back(mesh.positions[0]);
+  mesh.positions.push_back(mesh.positions[0]);
+  const int n = static_cast<int>(mesh.positions.size());
+  mesh.triangles.push_back({0, n - 2, n - 1});  // one position, three corners: kept
   const size_t good = mesh.triangles.size();
   mesh.triangles.push_back({0, 0, 1});
   mesh.triangles.push_back({2, 3, 2});
   const QuantizationBox box = quantization_box(mesh, std::nullopt);
-  EXPECT_EQ(decode_draco(encode_draco(mesh, box)).triangles.size(), good);
+  for (const int level : {0, 4, 10}) {  // sequential, and Edgebreaker at two speeds
+    EXPECT_EQ(decode_draco(encode_draco(mesh, box, {.compression_level = level})).triangles.size(), good) << level;
+  }
   mesh.triangles.erase(mesh.triangles.begin(), mesh.triangles.begin() + static_cast<std::ptrdiff_t>(good));
   EXPECT_TRUE(encode_draco(mesh, box).empty());
+}
+
+// Draco's sequential decoder (compression level 0) refused what its encoder wrote for a mesh with
+// a vertex no triangle uses (fuzzing found it): such vertices are not encoded, at every level.
+TEST(Draco, VerticesNoTriangleUsesAreNotEncoded) {
+  TriangleMesh mesh = wavy_sheet(4, 4);
+  mesh.positions.push_back({0.5f, 0.5f, 0.5f});
+  mesh.colors.push_back({1, 2, 3});
+  for (int level = 0; level <= 10; ++level) {
+    const TriangleMesh back = decode_draco(encode_draco(mesh, quantization_box(mesh, std::nullopt), {.compression_level = level}));
+    EXPECT_EQ(back.triangles.size(), mesh.triangles.size()) << level;
+    EXPECT_EQ(back.positions.size(), mesh.positions.size() - 1) << level;
+    EXPECT_EQ(back.colors.size(), back.positions.size()) << level;
+  }
 }
 
 // Positions farther apart than a float holds make the quantisation range infinite, which crashed

@@ -137,6 +137,7 @@ struct Residual {
   Vec3 r;
   float scaled = 0;  // |r| / σ, for trimming
   float weight = 0;
+  float support = 1;  // what it counts towards min_correspondences: the floor's 1/F, as its weight
 };
 
 struct Poses {
@@ -223,7 +224,10 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     res.scaled = res.r.norm() / sigma;
     // Weights relative to 1 mm so the normal equations stay near unit scale.
     res.weight = o.noise_weights ? 1e-6f / (sigma * sigma) : 1.0f;
-    if (pa.z() < weighting.floor_top_z && pb.z() < weighting.floor_top_z) res.weight *= weighting.floor_weight;
+    if (pa.z() < weighting.floor_top_z && pb.z() < weighting.floor_top_z) {
+      res.weight *= weighting.floor_weight;
+      res.support = weighting.floor_weight;
+    }
     out.push_back(res);
   }
 }
@@ -277,12 +281,13 @@ struct Accumulated {
 };
 
 // One pair's correspondences over all frames, summed: its two cameras' blocks of the normal
-// equations, [a; b] (12 unknowns), and its squared residuals.
+// equations, [a; b] (12 unknowns), its squared residuals, and its support before trimming.
 struct PairSums {
   Eigen::Matrix<double, 12, 12> h = Eigen::Matrix<double, 12, 12>::Zero();
   Eigen::Matrix<double, 12, 1> g = Eigen::Matrix<double, 12, 1>::Zero();
   double sum_sq = 0;
   int count = 0;
+  double support = 0;
 };
 
 // All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
@@ -290,6 +295,9 @@ struct PairSums {
 // together, not in each: at coarse levels of small depth maps (40×30 samples of a 320×240 camera)
 // or for cameras that overlap a little, each frame gives a few dozen, and a per-frame minimum
 // left those pairs, and with them whole cameras, out of the coarse levels that have to converge.
+// They are counted before trimming (in the solve as in the residuals after it, which decide which
+// cameras are joined), the floor's at 1/F: it is the same in every frame, and a pair that shares
+// only a few floor points does not place one camera against the other.
 Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, const PairWeighting& weighting, const RegistrationOptions& o, Eigen::MatrixXd* h,
                        Eigen::VectorXd* g, bool trimmed) {
   const int cameras = static_cast<int>(poses.world_from_depth.size());
@@ -305,8 +313,9 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
       for (int b = a + 1; b < cameras; ++b) {
         if (frame[a]->empty() || frame[b]->empty()) continue;
         match_pair(*frame[a], *frame[b], a, b, poses, max_distance, weighting, o, residuals);
-        if (trimmed) trim(residuals, o.trim_fraction);
         PairSums& sums = pairs[static_cast<size_t>(a) * cameras + b];
+        for (const Residual& res : residuals) sums.support += res.support;
+        if (trimmed) trim(residuals, o.trim_fraction);
         for (const Residual& res : residuals) {
           sums.sum_sq += res.r.squaredNorm();
           ++sums.count;
@@ -323,7 +332,7 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
   for (int a = 0; a < cameras; ++a) {
     for (int b = a + 1; b < cameras; ++b) {
       const PairSums& sums = pairs[static_cast<size_t>(a) * cameras + b];
-      if (sums.count < o.min_correspondences) continue;
+      if (sums.support < o.min_correspondences) continue;
       acc.pair_matched[static_cast<size_t>(a) * cameras + b] = 1;
       acc.sum_sq[a] += sums.sum_sq;
       acc.sum_sq[b] += sums.sum_sq;

@@ -49,7 +49,7 @@ struct RegistrationOptions {
   double max_pair_view_angle_deg = 68;  // degrees, point-to-plane: a correspondence whose mean normal either camera sees more obliquely is dropped (biased: the more oblique surface lies farther)
   double min_noise_cos = 0.4;      // σ along the normal is σ(z)·max(|cos θ|, this): grazing pairs would otherwise weigh the most
   int normal_step_px = 4;          // pixels (full resolution), kBilateral and kRaw: normals from neighbours this far apart, at least the stride
-  double trim_fraction = 0.03;     // share of each pair's correspondences with the largest |residual|/σ dropped
+  double trim_fraction = 0.03;     // share of each pair's correspondences in a frame with the largest |residual|/σ dropped
   bool point_to_plane = true;      // false: point-to-point (the plain GPA of the paper)
   bool noise_weights = true;       // weight by 1/σ² from the Kinect v1 axial noise σ(z) (Nguyen et al. 2012)
   RegistrationSurface surface = RegistrationSurface::kDisparityFit;
@@ -59,7 +59,7 @@ struct RegistrationOptions {
   ForegroundOptions foreground;
   double below_volume_m = 0.3;     // metres: the volume crop reaches this far below the volume, so the floor (static, seen by all) pins the cameras' tilt
   bool floor_counts_once = true;   // the floor's correspondences (both points below the volume's min z, world z up; none without a volume) weigh 1/F over F frames: it is the same in every frame set
-  int min_correspondences = 50;    // a pair with fewer over all its frames does not count
+  int min_correspondences = 50;    // a pair with fewer over all its frames (before trimming; the floor's count 1/F) does not count
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
   int num_threads = 0;             // 0 = all hardware threads
 
