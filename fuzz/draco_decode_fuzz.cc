@@ -11,26 +11,16 @@
 #include <string>
 
 #include "fuzz/fuzz_check.h"
+#include "fuzz/mesh_check.h"
 #include "zipfusion/io/draco_codec.h"
 
 namespace zipfusion::fuzz {
 namespace {
 
-void check_valid(const TriangleMesh& mesh) {
-  for (const Eigen::Vector3f& p : mesh.positions) {
-    if (!p.allFinite()) fail("a position that is not finite");
-  }
-  if (mesh.has_colors() && mesh.colors.size() != mesh.vertex_count()) fail("colours for some vertices only");
-  const int vertices = static_cast<int>(mesh.vertex_count());
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    if ((t.array() < 0).any() || (t.array() >= vertices).any()) fail("an index outside the vertices");
-  }
-}
-
 void check_draco(const std::string& bytes) {
   const auto mesh = decoded_or_error("draco", [&] { return decode_draco(bytes, kSource); });
   if (!mesh) return;
-  check_valid(*mesh);
+  check_valid_mesh(*mesh);
   const QuantizationBox box = quantization_box(*mesh, std::nullopt);
   // The level from the last byte, so that both of Draco's methods (sequential at 0) are run.
   const DracoOptions options{.compression_level = bytes.empty() ? 4 : static_cast<unsigned char>(bytes.back()) % 11};
@@ -45,7 +35,7 @@ void check_draco(const std::string& bytes) {
     fail(std::string("Draco failed to encode a decoded mesh: ") + e.what());
   }
   const TriangleMesh round_trip = must_decode([&] { return decode_draco(again, kSource); }, "Draco");
-  check_valid(round_trip);
+  check_valid_mesh(round_trip);
   if (round_trip.triangles.size() > mesh->triangles.size()) fail("Draco round trip added triangles");
   if (!round_trip.positions.empty() && round_trip.has_colors() != mesh->has_colors()) fail("Draco round trip changed whether there are colours");
 }

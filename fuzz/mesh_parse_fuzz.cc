@@ -2,28 +2,17 @@
 // ground truth of a capture read. A parsed mesh must be valid (finite positions, colours for
 // every vertex or none, indices in range) and come back unchanged from the writers.
 
-#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "fuzz/fuzz_check.h"
+#include "fuzz/mesh_check.h"
 #include "zipfusion/io/mesh_io.h"
 
 namespace zipfusion::fuzz {
 namespace {
-
-void check_valid(const TriangleMesh& mesh) {
-  for (const Eigen::Vector3f& p : mesh.positions) {
-    if (!p.allFinite()) fail("a position that is not finite");
-  }
-  if (mesh.has_colors() && mesh.colors.size() != mesh.vertex_count()) fail("colours for some vertices only");
-  const int vertices = static_cast<int>(mesh.vertex_count());
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    if ((t.array() < 0).any() || (t.array() >= vertices).any()) fail("an index outside the vertices");
-  }
-}
 
 bool same_mesh(const TriangleMesh& a, const TriangleMesh& b) {
   return a.positions == b.positions && a.colors == b.colors && a.triangles == b.triangles;
@@ -32,7 +21,7 @@ bool same_mesh(const TriangleMesh& a, const TriangleMesh& b) {
 void check_ply(const std::vector<std::uint8_t>& bytes) {
   const auto mesh = decoded_or_error("ply", [&] { return parse_ply(bytes, kSource); });
   if (!mesh) return;
-  check_valid(*mesh);
+  check_valid_mesh(*mesh);
   const TriangleMesh again = must_decode([&] { return parse_ply(encode_ply(*mesh), kSource); }, "PLY");
   if (!same_mesh(again, *mesh)) fail("PLY round trip changed the mesh");
 }
@@ -40,7 +29,7 @@ void check_ply(const std::vector<std::uint8_t>& bytes) {
 void check_obj(const std::string& text) {
   const auto mesh = decoded_or_error("obj", [&] { return parse_obj(text, kSource); });
   if (!mesh) return;
-  check_valid(*mesh);
+  check_valid_mesh(*mesh);
   const TriangleMesh again = must_decode([&] { return parse_obj(encode_obj(*mesh), kSource); }, "OBJ");
   if (!same_mesh(again, *mesh)) fail("OBJ round trip changed the mesh");
 }
