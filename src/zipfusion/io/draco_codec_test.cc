@@ -1,8 +1,11 @@
 #include "zipfusion/io/draco_codec.h"
 
+#include <draco/compression/encode.h>
+#include <draco/mesh/mesh.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <random>
 #include <set>
@@ -127,6 +130,30 @@ TEST(Draco, TrianglesWithARepeatedCornerAreLeftOut) {
   }
   mesh.triangles.erase(mesh.triangles.begin(), mesh.triangles.begin() + static_cast<std::ptrdiff_t>(good));
   EXPECT_TRUE(encode_draco(mesh, box).empty());
+}
+
+// Draco's own conversions read an attribute's `normalized` byte as a bool whatever the stream held
+// (undefined behaviour, found by fuzzing under UBSan): values are read as stored instead, and a
+// mesh whose positions are not 32-bit floats (here 16-bit integers, normalised) is refused.
+TEST(Draco, PositionsThatAreNotFloatsAreRefused) {
+  draco::Mesh mesh;
+  mesh.set_num_points(3);
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_INT16, true, sizeof(std::int16_t) * 3, 0);
+  draco::PointAttribute* positions = mesh.attribute(mesh.AddAttribute(position, true, 3));
+  const std::int16_t corners[3][3] = {{0, 0, 0}, {1000, 0, 0}, {0, 1000, 0}};
+  for (int i = 0; i < 3; ++i) positions->SetAttributeValue(draco::AttributeValueIndex(i), corners[i]);
+  mesh.SetNumFaces(1);
+  mesh.SetFace(draco::FaceIndex(0), {draco::PointIndex(0), draco::PointIndex(1), draco::PointIndex(2)});
+  draco::Encoder encoder;
+  draco::EncoderBuffer buffer;
+  ASSERT_TRUE(encoder.EncodeMeshToBuffer(mesh, &buffer).ok());
+  try {
+    decode_draco(std::string(buffer.data(), buffer.size()), "frame 10");
+    FAIL() << "16-bit positions were decoded";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 10: POSITION: missing or not three 32-bit floats"), std::string::npos) << e.what();
+  }
 }
 
 // Draco's sequential decoder (compression level 0) refused what its encoder wrote for a mesh with
