@@ -8,7 +8,6 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <iterator>
 #include <limits>
 
 #include "zipfusion/core/error.h"
@@ -53,23 +52,24 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
   options.validate();
   // Draco's Edgebreaker drops a face with a repeated corner and refuses a mesh of only those
   // (fuzzing found the refusal): they are left out at every level, and a mesh with none else is
-  // empty.
+  // empty. Draco's sequential decoder (compression level 0) refused what its encoder wrote for
+  // points that no face uses (fuzzing found it): only the used vertices are encoded, in their
+  // order.
   auto repeats_a_corner = [](const Eigen::Vector3i& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; };
-  const auto repeats = std::count_if(mesh.triangles.begin(), mesh.triangles.end(), repeats_a_corner);
-  if (repeats == static_cast<std::ptrdiff_t>(mesh.triangles.size())) return {};  // Draco has no encoding of an empty mesh
-  std::vector<Eigen::Vector3i> without_repeats;  // a copy only when there are some
-  if (repeats > 0) std::remove_copy_if(mesh.triangles.begin(), mesh.triangles.end(), std::back_inserter(without_repeats), repeats_a_corner);
-  const std::vector<Eigen::Vector3i>& triangles = repeats > 0 ? without_repeats : mesh.triangles;
+  std::vector<int> point_of_vertex(mesh.positions.size(), -1);
+  size_t faces = 0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (repeats_a_corner(t)) continue;
+    point_of_vertex[t[0]] = point_of_vertex[t[1]] = point_of_vertex[t[2]] = 0;
+    ++faces;
+  }
+  if (faces == 0) return {};  // Draco has no encoding of an empty mesh
   if (!draco_can_quantise(box)) {
     char what[160];
     std::snprintf(what, sizeof what, "draco: the quantisation box (origin %g %g %g, range %g) is not within a quarter of a float's range", box.origin.x(),
                   box.origin.y(), box.origin.z(), box.range);
     throw InvalidInput(what);
   }
-  // Draco's sequential decoder (compression level 0) refused what its encoder wrote for points
-  // that no face uses (fuzzing found it): only the used vertices are encoded, in their order.
-  std::vector<int> point_of_vertex(mesh.positions.size(), -1);
-  for (const Eigen::Vector3i& t : triangles) point_of_vertex[t[0]] = point_of_vertex[t[1]] = point_of_vertex[t[2]] = 0;
   int points = 0;
   for (int& point : point_of_vertex) {
     if (point == 0) point = points++;
@@ -92,11 +92,11 @@ std::string encode_draco(const TriangleMesh& mesh, const QuantizationBox& box, c
     positions->SetAttributeValue(point, mesh.positions[i].data());
     if (colors) color_attribute->SetAttributeValue(point, &mesh.colors[i]);
   }
-  out.SetNumFaces(triangles.size());
-  for (size_t t = 0; t < triangles.size(); ++t) {
-    const Eigen::Vector3i& tri = triangles[t];
-    out.SetFace(draco::FaceIndex(static_cast<std::uint32_t>(t)), {draco::PointIndex(point_of_vertex[tri[0]]), draco::PointIndex(point_of_vertex[tri[1]]),
-                                                                  draco::PointIndex(point_of_vertex[tri[2]])});
+  out.SetNumFaces(faces);
+  draco::FaceIndex face(0);
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (repeats_a_corner(t)) continue;
+    out.SetFace(face++, {draco::PointIndex(point_of_vertex[t[0]]), draco::PointIndex(point_of_vertex[t[1]]), draco::PointIndex(point_of_vertex[t[2]])});
   }
   draco::Encoder encoder;
   const int speed = 10 - options.compression_level;
