@@ -121,6 +121,10 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--max-pair-view-angle", o.max_pair_view_angle_deg,
                   "Correspondences whose mean normal either camera sees more obliquely are dropped, degrees")
       ->capture_default_str();
+  cmd->add_option("--fit-radius", o.fit_radius_px,
+                  "Half-width of the window each point and normal are fitted over at the finest level, pixels: wider averages more noise, narrower "
+                  "bends curved surfaces less (1 for low-noise depth at 320x240)")
+      ->capture_default_str();
   cmd->add_option("--min-noise-cos", o.min_noise_cos, "The noise along a pair's normal is taken as seen at a cosine of at least this")
       ->capture_default_str();
   cmd->add_flag("!--floor-every-frame", o.floor_counts_once,
