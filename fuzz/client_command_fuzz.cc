@@ -1,6 +1,6 @@
 // libFuzzer target: a viewer's WebSocket commands to `serve` (stream/stream_server.h), untrusted
 // bytes from the network. What parses must be a command the server can act on (a flow window in
-// 0..8, a ping's "t" that is JSON) and parse again, unchanged, from the text a viewer would send.
+// 0..8, a pong that is JSON with the ping's "t") and parse again, unchanged, from the text a viewer would send.
 
 #include <cstddef>
 #include <cstdint>
@@ -22,7 +22,11 @@ std::string viewer_text(const ClientCommand& c) {
     case ClientCommand::Type::kResume: return R"({"type":"resume"})";
     case ClientCommand::Type::kFlow: return R"({"type":"flow","window":)" + std::to_string(c.flow_window) + "}";
     case ClientCommand::Type::kAck: return R"({"type":"ack"})";
-    case ClientCommand::Type::kPing: return c.ping_t.empty() ? R"({"type":"ping"})" : R"({"type":"ping","t":)" + c.ping_t + "}";
+    case ClientCommand::Type::kPing: {
+      nlohmann::json ping = nlohmann::json::parse(c.pong);
+      ping["type"] = "ping";
+      return ping.dump();
+    }
   }
   fail("a command of no known type");
 }
@@ -34,9 +38,14 @@ void check_command(std::string_view text) {
     return;
   }
   if (command->flow_window < 0 || command->flow_window > 8) fail("a flow window outside 0..8");
-  if (!command->ping_t.empty() && !nlohmann::json::accept(command->ping_t)) fail("a ping's t that is not JSON: " + command->ping_t);
+  if (command->type == ClientCommand::Type::kPing) {
+    const nlohmann::json pong = nlohmann::json::parse(command->pong, nullptr, false);
+    if (!pong.is_object() || pong.value("type", "") != "pong" || pong.size() > 2 || (pong.size() == 2 && !pong.contains("t"))) {
+      fail("a pong that is not {\"type\": \"pong\"} with at most the ping's t: " + command->pong);
+    }
+  }
   const std::optional<ClientCommand> again = parse_client_command(viewer_text(*command));
-  if (!again || again->type != command->type || again->flow_window != command->flow_window || again->ping_t != command->ping_t) {
+  if (!again || again->type != command->type || again->flow_window != command->flow_window || again->pong != command->pong) {
     fail("the command does not parse again from the viewer's text: " + viewer_text(*command));
   }
 }

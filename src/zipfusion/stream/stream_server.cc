@@ -225,7 +225,7 @@ struct Session : std::enable_shared_from_this<Session> {
   // A command from the client; false when it is not one.
   bool handle(const std::string& text) {
     if (!ws.got_text()) return false;
-    const std::optional<ClientCommand> command = parse_client_command(text);
+    std::optional<ClientCommand> command = parse_client_command(text);
     if (!command) return false;
     switch (command->type) {
       case ClientCommand::Type::kPause:
@@ -243,12 +243,9 @@ struct Session : std::enable_shared_from_this<Session> {
         if (in_flight > 0) --in_flight;
         release_held();
         break;
-      case ClientCommand::Type::kPing: {
-        // As nlohmann writes the object: keys sorted.
-        const std::string pong = command->ping_t.empty() ? R"({"type":"pong"})" : R"({"t":)" + command->ping_t + R"(,"type":"pong"})";
-        enqueue(std::make_shared<const std::string>(pong), false);
+      case ClientCommand::Type::kPing:
+        enqueue(std::make_shared<const std::string>(std::move(command->pong)), false);
         break;
-      }
     }
     return true;
   }
@@ -459,7 +456,9 @@ std::optional<ClientCommand> parse_client_command(std::string_view text) {
     out.type = ClientCommand::Type::kAck;
   } else if (type == "ping") {
     out.type = ClientCommand::Type::kPing;
-    if (command.contains("t")) out.ping_t = command["t"].dump();
+    nlohmann::json pong{{"type", "pong"}};
+    if (command.contains("t")) pong["t"] = command["t"];
+    out.pong = pong.dump();
   } else {
     return std::nullopt;
   }

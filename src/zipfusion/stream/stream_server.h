@@ -54,7 +54,7 @@ struct ClientCommand {
   enum class Type { kPause, kResume, kFlow, kAck, kPing };
   Type type = Type::kPing;
   int flow_window = 0;   // kFlow: at most this many frames unacknowledged (1..8); 0 turns flow control off
-  std::string ping_t;    // kPing: the "t" member as JSON text, echoed in the pong; empty: none
+  std::string pong;      // kPing: the reply, as JSON text: {"type": "pong"} and the ping's "t" member, if any, echoed
 };
 
 //! Parses a client's text message (untrusted bytes from the network); nullopt when it is not a
