@@ -16,6 +16,7 @@
 #include <map>
 
 #include "cli/commands.h"
+#include "cli/frame_input.h"
 #include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
@@ -168,6 +169,7 @@ void run_bench(const BenchArgs& args) {
   const FrameSource source = capture_source(capture, 0, count);
   double ms = 0;
   while (std::optional<FrameSet> set = source(ms)) {
+    warn_unreadable_files("bench", capture.rig(), *set);
     frames.push_back(std::move(*set));
     decode_ms.push_back(ms);
     show_progress("decode", static_cast<int>(frames.size()), count);

@@ -136,20 +136,45 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   EXPECT_NE(empty.err.find("--frames: \"2:2\" selects no frames of a capture with 3 frames"), std::string::npos) << empty.err;
 }
 
-// A corrupt frame stops the run with one line naming the file, and a folder that run created for
-// its output is not left behind empty.
-TEST_F(Cli, CorruptFrameLeavesNoOutputFolder) {
+// A corrupt frame file costs its camera that frame set, not the run: one warning line naming the
+// file, the frame set made from the other cameras, the file listed in stats.json.
+TEST_F(Cli, CorruptFrameDegradesItsFrameSetNotTheRun) {
   const fs::path capture = dir_ / "cap";
-  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120").exit_code, 0);
-  const fs::path depth = capture / "cam1" / "depth" / "000000.png";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 3 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path depth = capture / "cam1" / "depth" / "000001.png";
   std::vector<std::uint8_t> bytes = read_file_bytes(depth);
   bytes.resize(bytes.size() / 2);
   write_file_atomic(depth, bytes);
   const fs::path out = dir_ / "out";
   const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
-  EXPECT_EQ(r.exit_code, 2);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(line_count(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find(depth.string() + ": cannot decode image (corrupt or truncated)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind("reconstruct: warning: " + depth.string() + ": cannot decode image (corrupt or truncated): ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find("; cam1 left out of frame set 1\n"), std::string::npos) << r.err;
+  const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(out / "stats.json"));
+  EXPECT_EQ(stats["unreadable_files"], 1);
+  ASSERT_EQ(stats["frames"].size(), 3u);
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_TRUE(fs::exists(out / frame_file_name(f, ".ply"))) << f;
+    EXPECT_EQ(stats["frames"][f]["cameras_used"], f == 1 ? 1 : 2) << f;
+    EXPECT_EQ(stats["frames"][f].contains("unreadable_files"), f == 1) << f;
+  }
+  EXPECT_EQ(stats["frames"][1]["unreadable_files"][0].get<std::string>().rfind(depth.string() + ": ", 0), 0u);
+}
+
+// A run that fails before writing a mesh (here a frame file that is a loop of links, which cannot
+// even be looked at) does not leave the output folder it created behind empty.
+TEST_F(Cli, ARunThatFailsBeforeWritingLeavesNoOutputFolder) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path depth = capture / "cam1" / "depth" / "000000.png";
+  fs::remove(depth);
+  fs::create_symlink(depth.filename(), depth);
+  const fs::path out = dir_ / "out";
+  const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find(depth.string()), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(out));
 }
 

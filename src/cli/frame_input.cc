@@ -22,7 +22,33 @@ double Input::skew_of(int index) {
   return index >= 0 && index < static_cast<int>(skew_ms.size()) ? skew_ms[index] : -1;
 }
 
-void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, Input& in) {
+std::vector<std::string> Input::unreadable_of(int index) {
+  std::lock_guard lock(unreadable_mutex);
+  const auto found = unreadable.find(index);
+  return found == unreadable.end() ? std::vector<std::string>{} : found->second;
+}
+
+int Input::unreadable_count() {
+  std::lock_guard lock(unreadable_mutex);
+  int count = 0;
+  for (const auto& [index, files] : unreadable) count += static_cast<int>(files.size());
+  return count;
+}
+
+int warn_unreadable_files(const std::string& command, const Rig& rig, const FrameSet& set) {
+  int count = 0;
+  for (size_t c = 0; c < set.cameras.size(); ++c) {
+    for (const std::string& file : set.cameras[c].unreadable) {
+      // A camera without depth is left out; one with depth but no colour makes grey vertices.
+      std::cerr << command << ": warning: " << file << "; " << rig.cameras.at(c).name
+                << (set.cameras[c].has_depth ? " has no colour in frame set " : " left out of frame set ") << set.index << "\n";
+      ++count;
+    }
+  }
+  return count;
+}
+
+void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in) {
   if (!(args.seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = until Ctrl-C or the end of the frames)");
   if (!args.live) {
     if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
@@ -30,7 +56,14 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.capture.emplace(Capture::open(args.capture));
     in.rig = rig_path.empty() ? in.capture->rig() : rig_with_poses_from(in.capture->rig(), rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
-    in.source = capture_source(*in.capture, in.range.begin, in.range.end);
+    in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in, command](double& decode_ms) {
+      std::optional<FrameSet> set = source(decode_ms);
+      if (set && warn_unreadable_files(command, in.capture->rig(), *set) > 0) {
+        std::lock_guard lock(in.unreadable_mutex);
+        in.unreadable[set->index] = unreadable_files(*set);
+      }
+      return set;
+    };
     return;
   }
   if (!args.capture.empty()) throw InvalidInput("--live: takes no CAPTURE (frames come from --devices or --replay)");

@@ -3,6 +3,7 @@
 // (--live: Kinect v1 devices or fakenect dumps replayed), with the rig for them.
 
 #include <CLI/CLI.hpp>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -36,14 +37,26 @@ struct Input {
   FrameSource source;     // capture: every frame as fast as it decodes; live: as the cameras deliver
   std::mutex skew_mutex;  // live: per frame set skew, written by the source thread
   std::vector<double> skew_ms;
+  std::mutex unreadable_mutex;  // capture: written by the source thread
+  std::map<int, std::vector<std::string>> unreadable;  // capture: per frame set, its frame files that could not be used
 
   //! The frame set's skew between the cameras (live), or a negative value.
   double skew_of(int index);
+  //! The frame set's unreadable frame files (CameraFrame::unreadable): their cameras were left out of it.
+  std::vector<std::string> unreadable_of(int index);
+  //! Every unreadable frame file so far.
+  int unreadable_count();
 };
+
+//! Prints one line to stderr for each of `set`'s unreadable frame files (CameraFrame::unreadable),
+//! "COMMAND: warning: FILE: reason; CAMERA left out of frame set N" (or "has no colour in"), and
+//! returns how many.
+int warn_unreadable_files(const std::string& command, const Rig& rig, const FrameSet& set);
 
 //! Opens the capture or the cameras. `rig_path` (--rig): poses for the capture, or the
 //! calibration of live cameras; `register_mode` is checked against --live. Throws InvalidInput
-//! naming the option.
-void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, Input& in);
+//! naming the option. A capture's source warns of each unreadable frame file as `command` and
+//! keeps them in `in.unreadable`.
+void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in);
 
 }  // namespace zipfusion::cli

@@ -29,6 +29,7 @@ struct CameraStats {
   double valid_fraction_sum = 0;    // over frames with depth
   double in_volume_fraction_sum = 0;
   std::vector<float> depth_samples;  // metres, subsampled
+  std::vector<std::string> unreadable;  // frame files examined that could not be used (CameraFrame::unreadable)
 };
 
 // Azimuth (degrees, from +x towards +y) and elevation of a camera's viewing direction.
@@ -64,6 +65,7 @@ void run_info(const InfoArgs& args) {
       const CameraFrame& f = set.cameras[c];
       const CameraModel& cam = rig.cameras[c];
       local[c].frames_with_color += f.has_color;
+      local[c].unreadable = f.unreadable;
       if (!f.has_depth) continue;
       local[c].frames_with_depth++;
       size_t valid = 0, in_volume = 0;
@@ -90,6 +92,7 @@ void run_info(const InfoArgs& args) {
       stats[c].valid_fraction_sum += local[c].valid_fraction_sum;
       stats[c].in_volume_fraction_sum += local[c].in_volume_fraction_sum;
       stats[c].depth_samples.insert(stats[c].depth_samples.end(), local[c].depth_samples.begin(), local[c].depth_samples.end());
+      stats[c].unreadable.insert(stats[c].unreadable.end(), local[c].unreadable.begin(), local[c].unreadable.end());
     }
     show_progress("info", ++done, static_cast<int>(frames.size()));
   });
@@ -133,6 +136,7 @@ void run_info(const InfoArgs& args) {
         {"frames_with_color", s.frames_with_color},
         {"missing_depth_frames", missing_depth[c]},
         {"missing_color_frames", missing_color[c]},
+        {"unreadable_frame_files", s.unreadable},
         {"valid_depth_fraction", s.frames_with_depth ? s.valid_fraction_sum / s.frames_with_depth : 0.0},
         {"depth_m", {{"min", quantile(0)}, {"median", quantile(0.5)}, {"max", quantile(1)}}}};
     if (cam.color_intrinsics) j["color"] = {{"width", cam.color_intrinsics->width}, {"height", cam.color_intrinsics->height}, {"fx", cam.color_intrinsics->fx}};
@@ -183,6 +187,13 @@ void run_info(const InfoArgs& args) {
     }
     std::cout << "); those cameras are skipped in those frames\n";
   }
+  std::vector<std::string> unreadable;
+  for (const CameraStats& s : stats) unreadable.insert(unreadable.end(), s.unreadable.begin(), s.unreadable.end());
+  if (!unreadable.empty()) {
+    std::sort(unreadable.begin(), unreadable.end());
+    std::cout << "\nunreadable frame files: " << unreadable.size() << " in the frames examined; those frame sets are made without them\n";
+    for (const std::string& file : unreadable) std::cout << "  " << file << "\n";
+  }
 }
 
 }  // namespace
@@ -193,7 +204,7 @@ void add_info_command(CLI::App& app) {
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
   cmd->add_option("--sample", args->sample, "Examine only this many evenly spaced frames (0 = all)")->check(CLI::Range(0, 1 << 30))->capture_default_str();
   cmd->add_flag("--json", args->json, "Print JSON instead of tables");
-  cmd->add_flag("--strict", args->strict, "Treat a missing frame file as an error");
+  cmd->add_flag("--strict", args->strict, "Treat a missing or unreadable frame file as an error");
   cmd->callback([args] { run_info(*args); });
 }
 

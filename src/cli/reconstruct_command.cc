@@ -58,7 +58,7 @@ void run_reconstruct(ReconstructArgs& args) {
   if (!args.input.live && args.input.seconds > 0) throw InvalidInput("--seconds: only with --live");
   ReconstructionArgs& r = args.reconstruction;
   Input in;
-  open_input(args.input, r.rig, r.register_mode, in);
+  open_input(args.input, r.rig, r.register_mode, "reconstruct", in);
 
   // The output folder is checked before the reconstruction is set up (--register once registers
   // the rig first, which takes seconds).
@@ -107,6 +107,7 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added},
                                   {"seam_pca", result.zipper.seam_pca}, {"seam_crease_gaps", result.zipper.seam_crease_gaps}}}});
     if (in.live && in.skew_of(frame.index) >= 0) frames.back()["skew_ms"] = in.skew_of(frame.index);
+    if (const std::vector<std::string> unreadable = in.unreadable_of(frame.index); !unreadable.empty()) frames.back()["unreadable_files"] = unreadable;
     if (range.end > range.begin) show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);
   }, pipeline_options);
 
@@ -136,9 +137,14 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
   stats["wall_ms"] = pipeline.wall_ms;
+  if (!in.live) stats["unreadable_files"] = in.unreadable_count();
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+  if (const int unreadable = in.unreadable_count(); unreadable > 0) {
+    std::cout << "reconstruct: " << unreadable << " frame files could not be used (listed above and in stats.json); those frame sets "
+              << "were made without them\n";
+  }
   if (in.live && pipeline.dropped > 0) {
     std::cout << "reconstruct: " << pipeline.dropped << " live frame sets were dropped because reconstruction fell behind the cameras\n";
   }

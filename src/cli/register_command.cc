@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "cli/commands.h"
+#include "cli/frame_input.h"
 #include "cli/frame_range.h"
 #include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
@@ -46,7 +47,9 @@ void run_register(RegisterArgs& args) {
 
   std::vector<std::vector<Image<float>>> depth;
   for (size_t i = 0; i < frames.size(); ++i) {
-    depth.push_back(registration_depth(start, capture.load_frame(frames[i]), args.options));
+    const FrameSet set = capture.load_frame(frames[i]);
+    warn_unreadable_files("register", capture.rig(), set);
+    depth.push_back(registration_depth(start, set, args.options));
     show_progress("register: loading", static_cast<int>(i) + 1, static_cast<int>(frames.size()));
   }
   const auto t0 = std::chrono::steady_clock::now();

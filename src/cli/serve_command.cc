@@ -100,6 +100,7 @@ class PacedSource {
       const Clock::time_point t = Clock::now();
       set = capture_.load_frame(index);
       decode_ms = ms_since(t);
+      warn_unreadable_files("serve", capture_.rig(), set);
       if (loop_) cache_.push_back(set);
     }
     std::this_thread::sleep_until(due);
@@ -126,7 +127,7 @@ void run_serve(ServeArgs& args) {
   if (args.input.live && args.loop) throw InvalidInput("--loop: only for a capture");
   ReconstructionArgs& r = args.reconstruction;
   Input in;
-  open_input(args.input, r.rig, r.register_mode, in);
+  open_input(args.input, r.rig, r.register_mode, "serve", in);
   Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).

@@ -45,21 +45,26 @@ void check_same_cameras(const Rig& rig, const Rig& truth, const std::string& tru
   }
 }
 
-// Extension of each frame's file in a camera's depth or colour folder ("" where there is none).
-// A file numbered beyond frame_count is a rig.json error.
-std::vector<std::string> scan_frame_folder(const fs::path& folder, std::initializer_list<const char*> extensions, int frames,
-                                           const fs::path& rig_path) {
-  std::vector<std::string> extension_of(frames);
+// The frame files of a camera's depth or colour folder, as (frame, extension), in no order: what
+// is there, not what rig.json promises, so that a frame_count far beyond the files costs nothing
+// before it is found out. A file numbered beyond frame_count is a rig.json error.
+std::vector<std::pair<int, std::string>> scan_frame_folder(const fs::path& folder, std::initializer_list<const char*> extensions, int frames,
+                                                           const fs::path& rig_path) {
+  std::vector<std::pair<int, std::string>> files;
   for (const fs::directory_entry& entry : fs::directory_iterator(folder)) {
     const int index = frame_index_of(entry.path(), extensions);
     if (index < 0) continue;
+    // A link to nothing is a missing file, as load_camera_frame finds it; a loop of links stays
+    // listed, for load_camera_frame to name.
+    std::error_code ec;
+    if (!entry.exists(ec) && (!ec || ec == std::errc::no_such_file_or_directory)) continue;
     if (index >= frames) {
       throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but " +
                          (folder.parent_path().filename() / folder.filename() / entry.path().filename()).string() + " exists");
     }
-    extension_of[index] = entry.path().extension().string();
+    files.emplace_back(index, entry.path().extension().string());
   }
-  return extension_of;
+  return files;
 }
 
 }  // namespace
@@ -98,7 +103,7 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   const int frames = rig.frame_count;
 
   int last_frame_seen = -1;
-  capture.color_extension_.resize(rig.cameras.size());
+  std::vector<std::vector<std::pair<int, std::string>>> depth_files(rig.cameras.size()), color_files(rig.cameras.size());
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     const CameraModel& camera = rig.cameras[c];
     const fs::path depth_dir = dir / camera.name / "depth";
@@ -106,23 +111,33 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
       throw InvalidInput(depth_dir.string() + ": missing folder for rig.json cameras[" + std::to_string(c) + "] (\"" +
                          camera.name + "\")");
     }
-    const std::vector<std::string> depth_ext = scan_frame_folder(depth_dir, {".png"}, frames, rig_path);
-    for (int f = 0; f < frames; ++f) {
-      if (!depth_ext[f].empty()) last_frame_seen = std::max(last_frame_seen, f);
-    }
-    std::vector<std::string>& color_ext = capture.color_extension_[c];
-    color_ext.assign(frames, "");
+    depth_files[c] = scan_frame_folder(depth_dir, {".png"}, frames, rig_path);
+    for (const auto& [f, extension] : depth_files[c]) last_frame_seen = std::max(last_frame_seen, f);
     const fs::path color_dir = dir / camera.name / "color";
-    if (camera.has_color() && fs::is_directory(color_dir, ec)) color_ext = scan_frame_folder(color_dir, {".jpg", ".png"}, frames, rig_path);
-    for (int f = 0; f < frames; ++f) {
-      if (depth_ext[f].empty()) capture.missing_.push_back({static_cast<int>(c), f, false});
-      if (camera.has_color() && color_ext[f].empty()) capture.missing_.push_back({static_cast<int>(c), f, true});
-    }
+    if (camera.has_color() && fs::is_directory(color_dir, ec)) color_files[c] = scan_frame_folder(color_dir, {".jpg", ".png"}, frames, rig_path);
   }
   if (frames > 0 && last_frame_seen != frames - 1) {
     throw InvalidInput(rig_path.string() + ": frame_count: is " + std::to_string(frames) + " but no camera has frame " +
                        frame_file_name(frames - 1, ".png") +
                        (last_frame_seen < 0 ? " (no depth frames at all)" : " (last depth frame is " + frame_file_name(last_frame_seen, ".png") + ")"));
+  }
+  capture.color_extension_.resize(rig.cameras.size());
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    std::vector<std::uint8_t> has_depth(frames, 0);
+    for (const auto& [f, extension] : depth_files[c]) has_depth[f] = 1;
+    std::vector<ColorFile>& color_ext = capture.color_extension_[c];
+    color_ext.assign(frames, ColorFile::kNone);
+    for (const auto& [f, extension] : color_files[c]) {
+      // Both a .jpg and a .png of one frame: which one was meant is not known.
+      if (color_ext[f] != ColorFile::kNone) {
+        throw InvalidInput((dir / rig.cameras[c].name / "color" / frame_file_name(f, ".jpg")).string() + ": a .jpg and a .png of the same frame");
+      }
+      color_ext[f] = extension == ".jpg" ? ColorFile::kJpg : ColorFile::kPng;
+    }
+    for (int f = 0; f < frames; ++f) {
+      if (!has_depth[f]) capture.missing_.push_back({static_cast<int>(c), f, false});
+      if (rig.cameras[c].has_color() && color_ext[f] == ColorFile::kNone) capture.missing_.push_back({static_cast<int>(c), f, true});
+    }
   }
   std::sort(capture.missing_.begin(), capture.missing_.end(), [](const MissingFrame& a, const MissingFrame& b) {
     return std::tie(a.frame, a.camera, a.color) < std::tie(b.frame, b.camera, b.color);
@@ -173,9 +188,9 @@ fs::path Capture::depth_path(int frame, int camera) const {
 }
 
 fs::path Capture::color_path(int frame, int camera) const {
-  const std::string& ext = color_extension_.at(camera).at(frame);
-  if (ext.empty()) return {};
-  return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, ext);
+  const ColorFile file = color_extension_.at(camera).at(frame);
+  if (file == ColorFile::kNone) return {};
+  return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, file == ColorFile::kJpg ? ".jpg" : ".png");
 }
 
 CameraFrame Capture::load_camera_frame(int frame, int camera) const {
@@ -183,30 +198,55 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   const CameraModel& model = rig_.cameras[camera];
   CameraFrame out;
   const fs::path depth_file = depth_path(frame, camera);
-  if (frame_file_present(depth_file)) {
-    out.depth = read_depth_png(depth_file);
-    check_size(depth_file.string(), out.depth.width, out.depth.height, model.depth_intrinsics, "depth_intrinsics");
-    if (depth_map_begin_[camera + 1] > depth_map_begin_[camera]) {
-      const int* source_pixel = depth_source_pixel_.data() + depth_map_begin_[camera];
-      DepthImage undistorted(out.depth.width, out.depth.height);
-      for (int p = 0; p < static_cast<int>(undistorted.data.size()); ++p) undistorted.data[p] = undistorted_depth(out.depth.data.data(), source_pixel, p);
-      out.depth = std::move(undistorted);
+  // A file that is there but cannot be used is left out as a missing one is, its reason (which
+  // names it) kept for the caller to report; strict, the error goes up.
+  auto decode_or_leave_out = [&](auto&& decode) {
+    try {
+      decode();
+      return true;
+    } catch (const InvalidInput& e) {
+      if (options_.strict) throw;
+      out.unreadable.emplace_back(e.what());
+    } catch (const IoError& e) {
+      if (options_.strict) throw;
+      out.unreadable.emplace_back(e.what());
     }
-    out.has_depth = true;
+    return false;
+  };
+  if (frame_file_present(depth_file)) {
+    out.has_depth = decode_or_leave_out([&] {
+      DepthImage recorded = read_depth_png(depth_file);
+      check_size(depth_file.string(), recorded.width, recorded.height, model.depth_intrinsics, "depth_intrinsics");
+      if (depth_map_begin_[camera + 1] > depth_map_begin_[camera]) {
+        const int* source_pixel = depth_source_pixel_.data() + depth_map_begin_[camera];
+        out.depth = DepthImage(recorded.width, recorded.height);
+        for (int p = 0; p < static_cast<int>(out.depth.data.size()); ++p) out.depth.data[p] = undistorted_depth(recorded.data.data(), source_pixel, p);
+      } else {
+        out.depth = std::move(recorded);
+      }
+    });
   } else if (options_.strict) {
     throw InvalidInput(depth_file.string() + ": missing frame");
   }
   if (model.has_color()) {
     const fs::path color_file = color_path(frame, camera);
     if (!color_file.empty() && frame_file_present(color_file)) {
-      out.color = read_color_image(color_file);
-      check_size(color_file.string(), out.color.width, out.color.height, *model.color_intrinsics, "color_intrinsics");
-      out.has_color = true;
+      out.has_color = decode_or_leave_out([&] {
+        ColorImage color = read_color_image(color_file);
+        check_size(color_file.string(), color.width, color.height, *model.color_intrinsics, "color_intrinsics");
+        out.color = std::move(color);
+      });
     } else if (options_.strict) {
       throw InvalidInput((dir_ / model.name / "color" / frame_file_name(frame, ".jpg")).string() + ": missing frame");
     }
   }
   return out;
+}
+
+std::vector<std::string> unreadable_files(const FrameSet& set) {
+  std::vector<std::string> files;
+  for (const CameraFrame& camera : set.cameras) files.insert(files.end(), camera.unreadable.begin(), camera.unreadable.end());
+  return files;
 }
 
 FrameSet Capture::load_frame(int frame) const {

@@ -5,8 +5,10 @@
 //! frames are decoded lazily, one at a time.
 //!
 //! Missing frames: a camera whose frame file is absent (a dropped frame, a camera that died
-//! mid-sequence) degrades that frame set rather than the run: load_frame() marks the camera as
-//! having no depth (or colour). With `strict`, any missing frame is an error instead.
+//! mid-sequence) or present but unusable (corrupt, truncated, another size than rig.json's: a
+//! recorder killed mid-write, a bad sector) degrades that frame set rather than the run:
+//! load_frame() marks the camera as having no depth (or colour), and lists an unusable file with
+//! its reason (CameraFrame::unreadable). With `strict`, either is an error instead.
 //! Thread safety: a Capture is immutable after open(); load_* may be called concurrently.
 
 #include <filesystem>
@@ -21,7 +23,7 @@
 namespace zipfusion {
 
 struct CaptureOpenOptions {
-  bool strict = false;  // a missing depth or colour frame is an error, not a hole
+  bool strict = false;  // a missing or unusable depth or colour frame is an error, not a hole
 };
 
 //! One camera's images of one frame.
@@ -30,6 +32,10 @@ struct CameraFrame {
   DepthImage depth;  // raw units of Rig::depth_unit_m, 0 = no measurement
   bool has_color = false;
   ColorImage color;
+  //! Frame files of this camera that are present but could not be used, each as "FILE: reason"
+  //! (has_depth or has_color is then false, as for a missing file); empty when opened strict,
+  //! where load_camera_frame throws instead.
+  std::vector<std::string> unreadable;
 };
 
 //! All cameras' images of one frame, in rig order.
@@ -38,6 +44,9 @@ struct FrameSet {
   double capture_time_ms = 0;  // when the frame set was captured, milliseconds since the Unix epoch; 0 = unknown
   std::vector<CameraFrame> cameras;
 };
+
+//! Every camera's unreadable frame files of a frame set (CameraFrame::unreadable), in rig order.
+std::vector<std::string> unreadable_files(const FrameSet& set);
 
 //! A frame file that the rig promises but the folder lacks.
 struct MissingFrame {
@@ -66,9 +75,10 @@ class Capture {
   //! The colour file of that frame (.jpg or .png), or an empty path when there is none.
   std::filesystem::path color_path(int frame, int camera) const;
 
-  //! Decodes one camera's frame. Throws InvalidInput for a corrupt file or one whose size or bit
-  //! depth does not match rig.json; a missing file leaves has_depth/has_color false (or throws
-  //! when opened strict). Depth whose intrinsics have distortion comes back undistorted: each
+  //! Decodes one camera's frame. A missing file leaves has_depth/has_color false; so does a file
+  //! that is corrupt, truncated, unreadable or whose size or bit depth does not match rig.json,
+  //! listed in `unreadable`. Opened strict, either throws (InvalidInput naming the file, or
+  //! IoError). Depth whose intrinsics have distortion comes back undistorted: each
   //! pixel of a pinhole camera with the same fx, fy, cx, cy takes the depth of the recorded pixel
   //! nearest to where its ray falls (0 where that lies outside the image), so the rest of
   //! zipfusion, which back-projects depth through the pinhole model, sees straight rays.
@@ -82,7 +92,8 @@ class Capture {
   std::optional<Rig> ground_truth_rig_;
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
-  std::vector<std::vector<std::string>> color_extension_;  // [camera][frame]: ".jpg", ".png" or ""
+  enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
+  std::vector<std::vector<ColorFile>> color_extension_;  // [camera][frame]
   // Per pinhole pixel of every camera whose depth has distortion, the recorded pixel it takes its
   // depth from (−1: none): camera c's map is [depth_map_begin_[c], depth_map_begin_[c + 1]), empty
   // for a camera without distortion.

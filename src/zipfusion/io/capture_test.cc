@@ -71,13 +71,18 @@ class SmallCapture : public ::testing::Test {
     }
     return "no error";
   }
+  // Why a camera's frame file cannot be used: opened strict, the error thrown; otherwise the same
+  // text is listed in `unreadable` and the frame loads without that image.
   std::string load_error(int frame, int camera) {
+    std::string error = "no error";
     try {
-      Capture::open(dir_).load_camera_frame(frame, camera);
+      Capture::open(dir_, {.strict = true}).load_camera_frame(frame, camera);
     } catch (const InvalidInput& e) {
-      return e.what();
+      error = e.what();
     }
-    return "no error";
+    const CameraFrame degraded = Capture::open(dir_).load_camera_frame(frame, camera);
+    EXPECT_EQ(degraded.unreadable, std::vector<std::string>{error});
+    return error;
   }
 
   Rig rig_;
@@ -114,6 +119,60 @@ TEST_F(SmallCapture, MissingFrameDegradesOrFailsWhenStrict) {
   const std::string error = open_error({.strict = true});
   EXPECT_NE(error.find((dir_ / "b" / "depth" / "000001.png").string()), std::string::npos) << error;
   EXPECT_NE(error.find("missing frame"), std::string::npos) << error;
+}
+
+// A file that is there but cannot be used (a recorder killed mid-write) costs its camera that
+// frame set, as a missing one does, and is listed with its reason; the other cameras and frames
+// load as they are.
+TEST_F(SmallCapture, AnUnusableFrameFileDegradesLikeAMissingOne) {
+  const fs::path depth = dir_ / "b" / "depth" / "000002.png", color = dir_ / "a" / "color" / "000001.png";
+  std::vector<std::uint8_t> bytes = read_file_bytes(depth);
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(depth, bytes);
+  write_file_atomic(color, std::string_view("not an image"));
+  const Capture capture = Capture::open(dir_);
+  EXPECT_TRUE(capture.missing_frames().empty());
+  const FrameSet set2 = capture.load_frame(2);
+  EXPECT_FALSE(set2.cameras[1].has_depth);
+  EXPECT_TRUE(set2.cameras[1].depth.empty());
+  EXPECT_EQ(set2.cameras[0].depth, ramp_depth(kWidth, kHeight, 2));
+  ASSERT_EQ(unreadable_files(set2).size(), 1u);
+  EXPECT_EQ(unreadable_files(set2)[0].rfind(depth.string() + ": cannot decode image (corrupt or truncated): ", 0), 0u) << unreadable_files(set2)[0];
+  const FrameSet set1 = capture.load_frame(1);
+  EXPECT_TRUE(set1.cameras[0].has_depth);
+  EXPECT_FALSE(set1.cameras[0].has_color);
+  EXPECT_TRUE(set1.cameras[0].color.empty());
+  EXPECT_EQ(unreadable_files(set1), std::vector<std::string>{color.string() + ": not a JPEG or PNG file"});
+  EXPECT_TRUE(unreadable_files(capture.load_frame(0)).empty());
+}
+
+// A link to nothing is a missing frame at open, as loading finds it (info listed it as present).
+TEST_F(SmallCapture, ALinkToNothingIsAMissingFrame) {
+  const fs::path file = dir_ / "b" / "depth" / "000001.png";
+  fs::remove(file);
+  fs::create_symlink(dir_ / "nothing.png", file);
+  const Capture capture = Capture::open(dir_);
+  ASSERT_EQ(capture.missing_frames().size(), 1u);
+  EXPECT_EQ(capture.missing_frames()[0].camera, 1);
+  EXPECT_EQ(capture.missing_frames()[0].frame, 1);
+  EXPECT_FALSE(capture.missing_frames()[0].color);
+  EXPECT_FALSE(capture.load_frame(1).cameras[1].has_depth);
+  EXPECT_TRUE(unreadable_files(capture.load_frame(1)).empty());
+}
+
+// Which of two colour files of one frame was meant is not known: an error at open naming them.
+TEST_F(SmallCapture, AJpgAndAPngOfOneFrameAreRefused) {
+  write_color_image(dir_ / "a" / "color" / "000001.jpg", pattern_color(kWidth, kHeight, 1));
+  const std::string error = open_error();
+  EXPECT_EQ(error, (dir_ / "a" / "color" / "000001.jpg").string() + ": a .jpg and a .png of the same frame");
+}
+
+// A frame_count far beyond the files is found out from the files present, without a slot for each
+// declared frame (a billion made `info` fail with std::bad_alloc).
+TEST_F(SmallCapture, AFrameCountFarBeyondTheFilesIsNamed) {
+  rig_.frame_count = kMostFrames;
+  write_rig(dir_ / "rig.json", rig_);
+  EXPECT_EQ(open_error(), (dir_ / "rig.json").string() + ": frame_count: is 1000000 but no camera has frame 999999.png (last depth frame is 000002.png)");
 }
 
 TEST_F(SmallCapture, DeadCameraMidSequenceStillOpens) {
