@@ -33,17 +33,17 @@ bool is_jpeg(const std::vector<std::uint8_t>& bytes) {
 // every problem the libraries report, warnings about the pixels included, becomes one
 // InvalidInput naming the file, and nothing is printed.
 
-// Larger images than any depth camera's are refused before their pixels are allocated.
-constexpr std::uint32_t kMostImageSide = 1 << 15;
-constexpr std::uint64_t kMostImagePixels = std::uint64_t{1} << 26;
-
 [[noreturn]] void throw_undecodable(const std::string& source, const char* problem) {
   throw InvalidInput(source + ": cannot decode image (corrupt or truncated): " + problem);
 }
 
+}  // namespace
+
 bool plausible_image_size(std::uint64_t width, std::uint64_t height) {
   return width > 0 && height > 0 && width <= kMostImageSide && height <= kMostImageSide && width * height <= kMostImagePixels;
 }
+
+namespace {
 
 void check_image_size(std::uint64_t width, std::uint64_t height, const std::string& source) {
   if (!plausible_image_size(width, height)) {

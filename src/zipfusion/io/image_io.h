@@ -14,6 +14,12 @@
 
 namespace zipfusion {
 
+//! Larger images than any depth camera's are refused, as files before their pixels are allocated
+//! and as rig.json intrinsics: at most 32768 pixels a side and 2^26 pixels.
+constexpr std::uint32_t kMostImageSide = 1 << 15;
+constexpr std::uint64_t kMostImagePixels = std::uint64_t{1} << 26;
+bool plausible_image_size(std::uint64_t width, std::uint64_t height);
+
 //! Decodes a 16-bit single-channel PNG. `source` names the file in errors.
 DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source);
 DepthImage read_depth_png(const std::filesystem::path& path);

@@ -9,6 +9,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/io/image_io.h"
 
 namespace zipfusion {
 namespace {
@@ -113,6 +114,12 @@ Intrinsics parse_intrinsics(const Fields& f) {
   Intrinsics k;
   k.width = f.integer("width", 1);
   k.height = f.integer("height", 1);
+  // A size no camera has would only be found when the first frame is decoded, after what is
+  // sized by it (a distortion map of every pixel) has been built.
+  if (!plausible_image_size(k.width, k.height)) {
+    f.fail(f.field("width"), std::to_string(k.width) + "x" + std::to_string(k.height) + " is larger than any camera's image (at most " +
+                                 std::to_string(kMostImageSide) + " pixels a side and 2^26 pixels)");
+  }
   // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175
   // degrees, past any pinhole lens. The principal point within an image's size of the image.
   // Bounded by the larger side: a strip sensor (synth allows 4096×24) has one focal length for both.
@@ -200,6 +207,10 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
   Rig rig;
   rig.fps = top.plausible("fps", 0.001, 1000, "frames per second");
   rig.frame_count = top.integer("frame_count", 0);
+  if (rig.frame_count > kMostFrames) {
+    top.fail("frame_count", "must be at most " + std::to_string(kMostFrames) + " (frame files are numbered with six digits), got " +
+                                std::to_string(rig.frame_count));
+  }
   if (top.has("depth_unit_m")) rig.depth_unit_m = top.plausible("depth_unit_m", 1e-6, 1, "metres");
   if (top.has("poses_trusted")) {
     const json& trusted = top.required("poses_trusted");

@@ -15,6 +15,8 @@
 namespace zipfusion {
 
 inline constexpr const char* kRigFormat = "zipfusion.rig/1";
+//! Frame files are numbered with six digits (000000.png to 999999.png).
+inline constexpr int kMostFrames = 1000000;
 
 struct CameraModel {
   std::string name;                           // also the camera's folder in the capture
@@ -28,7 +30,7 @@ struct CameraModel {
 
 struct Rig {
   double fps = 30;                // frames per second
-  int frame_count = 0;            // frames per camera
+  int frame_count = 0;            // frames per camera, at most kMostFrames
   double depth_unit_m = 0.001;    // metres per depth PNG unit
   std::optional<Box3d> volume;    // capture volume in world coordinates, metres
   // "poses_trusted" (optional, a zipfusion extension ignored by other tools): the poses come from

@@ -125,6 +125,8 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"zero fps", [](json& j) { j["fps"] = 0; }, "fps: must be positive"},
       {"fractional frame_count", [](json& j) { j["frame_count"] = 2.5; }, "frame_count: must be an integer"},
       {"negative frame_count", [](json& j) { j["frame_count"] = -1; }, "frame_count: must be an integer >= 0"},
+      {"more frames than six digits number", [](json& j) { j["frame_count"] = 1000001; },
+       "frame_count: must be at most 1000000 (frame files are numbered with six digits), got 1000001"},
       {"string depth unit", [](json& j) { j["depth_unit_m"] = "mm"; }, "depth_unit_m: must be a number"},
       {"numeric trust", [](json& j) { j["poses_trusted"] = 1; }, "poses_trusted: must be true or false"},
       {"inverted volume", [](json& j) { j["volume"]["max"][2] = -5; }, "volume: min must be below max"},
@@ -160,6 +162,9 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"far principal point", [](json& j) { j["cameras"][0]["depth_intrinsics"]["cx"] = 5000; }, "cameras[0].depth_intrinsics.cx: must be in"},
       {"far camera", [](json& j) { j["cameras"][1]["world_from_depth"][0][3] = 1e300; },
        "cameras[1].world_from_depth: translation must be within 1000 m"},
+      // Found before any frame: a distortion map of 20000×20000 pixels took 3 GB and 12 s.
+      {"huge image", [](json& j) { j["cameras"][0]["depth_intrinsics"].update({{"width", 20000}, {"height", 20000}, {"fx", 2000}, {"fy", 2000}}); },
+       "cameras[0].depth_intrinsics.width: 20000x20000 is larger than any camera's image (at most 32768 pixels a side and 2^26 pixels)"},
   };
   for (const BadCase& c : cases) {
     const std::string error = error_after(c.edit);
