@@ -68,6 +68,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + capture, "already exists and is not empty"},
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
+      {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 0", "views: must be in [1, 10000]"},
       // A folder that cannot be made is named as asked for, not as the hidden one it is built in.
       {"synth --out /proc/zf_cli_test_capture", "zipfusion: error: /proc/zf_cli_test_capture: cannot write (", 3},
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},
@@ -197,6 +198,26 @@ TEST_F(Cli, EarlierMeshesThatWouldStayAreRefused) {
   }
   EXPECT_FALSE(fs::exists(out / "000000.obj"));
   EXPECT_EQ(fs::last_write_time(out / "000000.ply"), written_at);  // the refused runs wrote nothing
+}
+
+// "DIR/" and "DIR/." (as a shell completes a folder) name DIR: the capture is written there, with
+// nothing left beside or inside it (the staging folder was made inside DIR, so renaming failed
+// after the whole capture was rendered, and an empty DIR stayed).
+TEST_F(Cli, AnOutputFolderWithATrailingSlashIsThatFolder) {
+  for (const std::string suffix : {"/", "/."}) {
+    const fs::path capture = dir_ / "slash";
+    fs::remove_all(capture);
+    const CommandResult r = run("synth --out " + capture.string() + suffix + " --frames 1 --cameras 2 --resolution 160x120");
+    ASSERT_EQ(r.exit_code, 0) << suffix << ": " << r.err;
+    EXPECT_EQ(Capture::open(capture).camera_count(), 2) << suffix;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir_)) EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
+    for (const fs::directory_entry& e : fs::directory_iterator(capture)) EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
+    const fs::path board = dir_ / "board";
+    ASSERT_EQ(run("synth --out " + board.string() + suffix + " --checkerboard --views 1").exit_code, 0) << suffix;
+    EXPECT_TRUE(fs::exists(board / "truth.json")) << suffix;
+    EXPECT_TRUE(fs::exists(board / "view_000.png")) << suffix;
+    fs::remove_all(board);
+  }
 }
 
 TEST_F(Cli, EverySubcommandHasHelp) {

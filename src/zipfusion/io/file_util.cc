@@ -72,8 +72,15 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
   write_file_atomic(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
-void check_new_folder(const std::filesystem::path& dir, std::string_view option) {
+std::filesystem::path folder_path(const std::filesystem::path& dir) {
+  std::filesystem::path normal = dir.lexically_normal();
+  if (!normal.has_filename() && normal.has_relative_path()) normal = normal.parent_path();
+  return normal;
+}
+
+void check_new_folder(const std::filesystem::path& asked_for, std::string_view option) {
   namespace fs = std::filesystem;
+  const fs::path dir = folder_path(asked_for);
   std::error_code ec;
   if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
     throw InvalidInput(dir.string() + ": already exists and is not empty (choose a new " + std::string(option) + ")");
@@ -94,8 +101,9 @@ std::string in_folder_asked_for(std::string text, const std::filesystem::path& s
 
 }  // namespace
 
-void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill) {
+void write_folder_atomic(const std::filesystem::path& asked_for, const std::function<void(const std::filesystem::path& staging)>& fill) {
   namespace fs = std::filesystem;
+  const fs::path dir = folder_path(asked_for);  // the staging folder goes beside it, not into it
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
   // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) on "." + string + … once inlined here.
   std::string staging_name = ".";

@@ -19,6 +19,9 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_file_atomic(const std::filesystem::path& path, std::string_view text);
 
+//! The folder a path names: "out/" and "out/." name out (lexically normal, no trailing separator).
+std::filesystem::path folder_path(const std::filesystem::path& dir);
+
 //! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command
 //! line option that chose it), and IoError when its parent folder cannot be created.
 void check_new_folder(const std::filesystem::path& dir, std::string_view option);

@@ -12,6 +12,7 @@
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/io/image_io.h"
 #include "zipfusion/synth/kinect_model.h"
 
@@ -277,24 +278,22 @@ std::vector<CheckerboardView> render_checkerboard_views(const CheckerboardOption
 }
 
 void write_checkerboard_views(const fs::path& out_dir, const CheckerboardOptions& options) {
-  std::error_code ec;
-  if (fs::exists(out_dir, ec) && !(fs::is_directory(out_dir, ec) && fs::is_empty(out_dir, ec))) {
-    throw InvalidInput(out_dir.string() + ": already exists and is not empty (choose a new --out)");
-  }
-  fs::create_directories(out_dir, ec);
-  if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create the folder");
+  // Rendered (which checks the options) before anything is made on disk, then written as a whole.
   const std::vector<CheckerboardView> views = render_checkerboard_views(options);
-  for (size_t i = 0; i < views.size(); ++i) {
-    char name[32];
-    std::snprintf(name, sizeof name, "view_%03zu.png", i);
-    write_color_image(out_dir / name, views[i].image);
-  }
-  const Intrinsics& k = options.intrinsics;
-  const nlohmann::json truth = {
-      {"intrinsics", {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}}},
-      {"board", {{"inner_columns", options.inner_columns}, {"inner_rows", options.inner_rows}, {"square_m", options.square_m}}},
-      {"views", views.size()}};
-  write_file_atomic(out_dir / "truth.json", truth.dump(2) + "\n");
+  check_new_folder(out_dir, "--out");
+  write_folder_atomic(out_dir, [&](const fs::path& staging) {
+    for (size_t i = 0; i < views.size(); ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "view_%03zu.png", i);
+      write_color_image(staging / name, views[i].image);
+    }
+    const Intrinsics& k = options.intrinsics;
+    const nlohmann::json truth = {
+        {"intrinsics", {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}}},
+        {"board", {{"inner_columns", options.inner_columns}, {"inner_rows", options.inner_rows}, {"square_m", options.square_m}}},
+        {"views", views.size()}};
+    write_file_atomic(staging / "truth.json", truth.dump(2) + "\n");
+  });
 }
 
 }  // namespace zipfusion
