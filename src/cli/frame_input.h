@@ -38,7 +38,7 @@ struct Input {
   std::mutex skew_mutex;  // live: per frame set skew, written by the source thread
   std::vector<double> skew_ms;
   std::mutex unreadable_mutex;  // capture: written by the source thread
-  std::map<int, std::vector<std::string>> unreadable;  // capture: per frame set, its frame files that could not be used
+  std::map<int, std::vector<std::string>> unreadable;  // capture: per frame set, its frame files that could not be decoded
 
   //! The frame set's skew between the cameras (live), or a negative value.
   double skew_of(int index);

@@ -29,7 +29,7 @@ struct CameraStats {
   double valid_fraction_sum = 0;    // over frames with depth
   double in_volume_fraction_sum = 0;
   std::vector<float> depth_samples;  // metres, subsampled
-  std::vector<std::string> unreadable;  // frame files examined that could not be used (CameraFrame::unreadable)
+  std::vector<std::string> unreadable;  // frame files examined that could not be decoded (CameraFrame::unreadable)
 };
 
 // Azimuth (degrees, from +x towards +y) and elevation of a camera's viewing direction.
@@ -204,7 +204,7 @@ void add_info_command(CLI::App& app) {
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
   cmd->add_option("--sample", args->sample, "Examine only this many evenly spaced frames (0 = all)")->check(CLI::Range(0, 1 << 30))->capture_default_str();
   cmd->add_flag("--json", args->json, "Print JSON instead of tables");
-  cmd->add_flag("--strict", args->strict, "Treat a missing or unreadable frame file as an error");
+  cmd->add_flag("--strict", args->strict, "Treat a missing or undecodable frame file as an error");
   cmd->callback([args] { run_info(*args); });
 }
 

@@ -16,6 +16,14 @@ class InvalidInput : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+//! A file whose bytes cannot be decoded: corrupt, truncated, not the format its name says. Bad
+//! data in one file (a recorder killed mid-write, a bad sector), where InvalidInput's other file
+//! errors (a wrong size or bit depth) break the capture's contract and hold for every frame.
+class CorruptFile : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
 //! A file that cannot be opened, read, decoded or written.
 class IoError : public std::runtime_error {
  public:

@@ -198,13 +198,15 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   const CameraModel& model = rig_.cameras[camera];
   CameraFrame out;
   const fs::path depth_file = depth_path(frame, camera);
-  // A file that is there but cannot be used is left out as a missing one is, its reason (which
-  // names it) kept for the caller to report; strict, the error goes up.
+  // A file that is there but whose bytes cannot be read or decoded is left out as a missing one
+  // is, its reason (which names it) kept for the caller to report; strict, the error goes up. A
+  // decoded image of another size or bit depth than rig.json's breaks the capture's contract and
+  // is an error either way.
   auto decode_or_leave_out = [&](auto&& decode) {
     try {
       decode();
       return true;
-    } catch (const InvalidInput& e) {
+    } catch (const CorruptFile& e) {
       if (options_.strict) throw;
       out.unreadable.emplace_back(e.what());
     } catch (const IoError& e) {

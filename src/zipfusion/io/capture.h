@@ -5,9 +5,9 @@
 //! frames are decoded lazily, one at a time.
 //!
 //! Missing frames: a camera whose frame file is absent (a dropped frame, a camera that died
-//! mid-sequence) or present but unusable (corrupt, truncated, another size than rig.json's: a
-//! recorder killed mid-write, a bad sector) degrades that frame set rather than the run:
-//! load_frame() marks the camera as having no depth (or colour), and lists an unusable file with
+//! mid-sequence) or present but undecodable (corrupt, truncated, unreadable: a recorder killed
+//! mid-write, a bad sector) degrades that frame set rather than the run:
+//! load_frame() marks the camera as having no depth (or colour), and lists an undecodable file with
 //! its reason (CameraFrame::unreadable). With `strict`, either is an error instead.
 //! Thread safety: a Capture is immutable after open(); load_* may be called concurrently.
 
@@ -23,7 +23,7 @@
 namespace zipfusion {
 
 struct CaptureOpenOptions {
-  bool strict = false;  // a missing or unusable depth or colour frame is an error, not a hole
+  bool strict = false;  // a missing or undecodable depth or colour frame is an error, not a hole
 };
 
 //! One camera's images of one frame.
@@ -32,7 +32,7 @@ struct CameraFrame {
   DepthImage depth;  // raw units of Rig::depth_unit_m, 0 = no measurement
   bool has_color = false;
   ColorImage color;
-  //! Frame files of this camera that are present but could not be used, each as "FILE: reason"
+  //! Frame files of this camera that are present but could not be read or decoded, each as "FILE: reason"
   //! (has_depth or has_color is then false, as for a missing file); empty when opened strict,
   //! where load_camera_frame throws instead.
   std::vector<std::string> unreadable;
@@ -76,9 +76,9 @@ class Capture {
   std::filesystem::path color_path(int frame, int camera) const;
 
   //! Decodes one camera's frame. A missing file leaves has_depth/has_color false; so does a file
-  //! that is corrupt, truncated, unreadable or whose size or bit depth does not match rig.json,
-  //! listed in `unreadable`. Opened strict, either throws (InvalidInput naming the file, or
-  //! IoError). Depth whose intrinsics have distortion comes back undistorted: each
+  //! that cannot be read or decoded (CorruptFile, IoError), listed in `unreadable`; opened strict,
+  //! either throws. A file whose size or bit depth does not match rig.json throws InvalidInput
+  //! naming it, strict or not. Depth whose intrinsics have distortion comes back undistorted: each
   //! pixel of a pinhole camera with the same fx, fy, cx, cy takes the depth of the recorded pixel
   //! nearest to where its ray falls (0 where that lies outside the image), so the rest of
   //! zipfusion, which back-projects depth through the pinhole model, sees straight rays.

@@ -71,17 +71,25 @@ class SmallCapture : public ::testing::Test {
     }
     return "no error";
   }
-  // Why a camera's frame file cannot be used: opened strict, the error thrown; otherwise the same
-  // text is listed in `unreadable` and the frame loads without that image.
-  std::string load_error(int frame, int camera) {
+  // Why a camera's frame file cannot be used: opened strict, the error thrown. Otherwise a file
+  // whose bytes do not decode (`corrupt`) is listed with the same text in `unreadable` and the
+  // frame loads without that image; one that decodes to another size or bit depth than rig.json's
+  // is the same error.
+  std::string load_error(int frame, int camera, bool corrupt) {
     std::string error = "no error";
     try {
       Capture::open(dir_, {.strict = true}).load_camera_frame(frame, camera);
     } catch (const InvalidInput& e) {
       error = e.what();
     }
-    const CameraFrame degraded = Capture::open(dir_).load_camera_frame(frame, camera);
-    EXPECT_EQ(degraded.unreadable, std::vector<std::string>{error});
+    std::string error_not_strict = "no error";
+    try {
+      const CameraFrame degraded = Capture::open(dir_).load_camera_frame(frame, camera);
+      EXPECT_EQ(degraded.unreadable, std::vector<std::string>{error});
+    } catch (const InvalidInput& e) {
+      error_not_strict = e.what();
+    }
+    EXPECT_EQ(error_not_strict, corrupt ? "no error" : error);
     return error;
   }
 
@@ -197,19 +205,19 @@ TEST_F(SmallCapture, FrameCountMismatchIsAnError) {
 
 TEST_F(SmallCapture, WrongSizeIsNamed) {
   write_depth_png(dir_ / "b" / "depth" / "000001.png", ramp_depth(kWidth + 1, kHeight, 1));
-  const std::string error = load_error(1, 1);
+  const std::string error = load_error(1, 1, false);
   EXPECT_NE(error.find((dir_ / "b" / "depth" / "000001.png").string()), std::string::npos) << error;
   EXPECT_NE(error.find("size 33x24 does not match rig.json depth_intrinsics 32x24"), std::string::npos) << error;
 
   write_color_image(dir_ / "a" / "color" / "000000.png", pattern_color(kWidth, kHeight + 2, 0));
-  const std::string color_error = load_error(0, 0);
+  const std::string color_error = load_error(0, 0, false);
   EXPECT_NE(color_error.find("color_intrinsics"), std::string::npos) << color_error;
 }
 
 TEST_F(SmallCapture, WrongBitDepthIsNamed) {
   // An 8-bit grey PNG where a 16-bit depth map belongs.
   write_color_image(dir_ / "a" / "depth" / "000000.png", pattern_color(kWidth, kHeight, 0));
-  const std::string error = load_error(0, 0);
+  const std::string error = load_error(0, 0, false);
   EXPECT_NE(error.find((dir_ / "a" / "depth" / "000000.png").string()), std::string::npos) << error;
   EXPECT_NE(error.find("bit depth: depth PNG must be 16-bit single-channel, got 8-bit with 3 channel(s)"), std::string::npos) << error;
 }
@@ -218,15 +226,15 @@ TEST_F(SmallCapture, CorruptAndTruncatedFilesAreNamed) {
   std::vector<std::uint8_t> bytes = read_file_bytes(dir_ / "a" / "depth" / "000002.png");
   bytes.resize(bytes.size() / 2);
   write_file_atomic(dir_ / "a" / "depth" / "000002.png", bytes);
-  std::string error = load_error(2, 0);
+  std::string error = load_error(2, 0, true);
   EXPECT_NE(error.find("a/depth/000002.png"), std::string::npos) << error;
 
   write_file_atomic(dir_ / "b" / "depth" / "000002.png", std::string_view("not a png at all"));
-  error = load_error(2, 1);
+  error = load_error(2, 1, true);
   EXPECT_NE(error.find("b/depth/000002.png: not a PNG file"), std::string::npos) << error;
 
   write_file_atomic(dir_ / "a" / "color" / "000001.png", std::string_view("\x89PNG\r\n\x1a\ngarbage"));
-  error = load_error(1, 0);
+  error = load_error(1, 0, true);
   EXPECT_NE(error.find("a/color/000001.png: cannot decode image"), std::string::npos) << error;
 }
 

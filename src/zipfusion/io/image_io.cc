@@ -34,7 +34,7 @@ bool is_jpeg(const std::vector<std::uint8_t>& bytes) {
 // InvalidInput naming the file, and nothing is printed.
 
 [[noreturn]] void throw_undecodable(const std::string& source, const char* problem) {
-  throw InvalidInput(source + ": cannot decode image (corrupt or truncated): " + problem);
+  throw CorruptFile(source + ": cannot decode image (corrupt or truncated): " + problem);
 }
 
 }  // namespace
@@ -47,7 +47,7 @@ namespace {
 
 void check_image_size(std::uint64_t width, std::uint64_t height, const std::string& source) {
   if (!plausible_image_size(width, height)) {
-    throw InvalidInput(source + ": image size: " + std::to_string(width) + "x" + std::to_string(height) + " is not a plausible camera image");
+    throw CorruptFile(source + ": image size: " + std::to_string(width) + "x" + std::to_string(height) + " is not a plausible camera image");
   }
 }
 
@@ -235,7 +235,7 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
 }  // namespace
 
 DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source) {
-  if (!is_png(bytes)) throw InvalidInput(source + ": not a PNG file (depth must be 16-bit PNG)");
+  if (!is_png(bytes)) throw CorruptFile(source + ": not a PNG file (depth must be 16-bit PNG)");
   DepthImage depth;
   decode_png(bytes, source, depth);
   return depth;
@@ -251,7 +251,7 @@ ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std:
     decode_jpeg(bytes, source, color);
     return color;
   }
-  if (!is_png(bytes)) throw InvalidInput(source + ": not a JPEG or PNG file");
+  if (!is_png(bytes)) throw CorruptFile(source + ": not a JPEG or PNG file");
   ColorImage color;
   decode_png(bytes, source, color);
   return color;
