@@ -63,7 +63,7 @@ struct RegistrationOptions {
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
   int num_threads = 0;             // 0 = all hardware threads
 
-  void validate() const;  // throws InvalidInput naming the field
+  void validate() const;  // throws InvalidInput naming `zipfusion register`'s option (without --) or, where it has none, the field
 };
 
 struct RegistrationResult {
