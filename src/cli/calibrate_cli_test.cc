@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_test_util.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/io/rig.h"
 
 namespace zipfusion {
@@ -15,15 +16,26 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::CommandResult;
+using testing::line_count;
 
 class CalibrateCli : public testing::CliTest {};
 
 TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
   const fs::path capture = dir_ / "wand";
   ASSERT_EQ(run("synth --wand --out " + capture.string() + " --frames 120 --cameras 4 --resolution 320x240 --miscalibrate 2,0.05").exit_code, 0);
+  // One colour frame cut short, as a recorder killed mid-write leaves it: that camera's frame is
+  // not used, with a warning, and the calibration goes on.
+  const fs::path cut = capture / "cam2" / "color" / "000050.png";
+  const fs::path cut_jpg = capture / "cam2" / "color" / "000050.jpg";
+  const fs::path frame = fs::exists(cut) ? cut : cut_jpg;
+  std::vector<std::uint8_t> bytes = read_file_bytes(frame);
+  bytes.resize(bytes.size() / 3);
+  write_file_atomic(frame, bytes);
   const fs::path out = dir_ / "rig.json";
   const CommandResult r = run("calibrate extrinsics " + capture.string() + " --led-distance 0.445 --out " + out.string() + " --threads 2");
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("calibrate: warning: " + frame.string() + ": cannot decode image (corrupt or truncated): ", 0), 0u) << r.err;
   EXPECT_NE(r.out.find("cam3"), std::string::npos);
   EXPECT_NE(r.out.find("after BA"), std::string::npos);
   const Rig calibrated = read_rig(out);
@@ -65,6 +77,14 @@ TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {
   r = run("calibrate extrinsics " + dir_.string() + " --led-distance -1 --out " + (dir_ / "r.json").string());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("led-distance"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "r.json"));
+  // A capture without a wand in it: the cameras are not connected, said of that capture.
+  const fs::path capture = dir_ / "nowand";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120").exit_code, 0);
+  r = run("calibrate extrinsics " + capture.string() + " --out " + (dir_ / "r.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("zipfusion: error: " + capture.string() + ": the rig is not connected: cam1 share", 0), 0u) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "r.json"));
 }
 

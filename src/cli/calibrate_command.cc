@@ -122,7 +122,16 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   const Capture capture = Capture::open(args.capture);
   const WandObservations observations =
       detect_wand(capture, {}, args.threads, [](int done, int total) { show_progress("detect", done, total); });
-  const ExtrinsicResult result = calibrate_extrinsics(capture.rig(), observations, args.options);
+  for (const std::string& file : observations.unreadable) std::cerr << "calibrate: warning: " << file << "; that camera's frame is not used\n";
+  // What calibration finds wrong is about this capture's wand frames (a capture without a wand
+  // leaves the cameras unconnected): named by the capture.
+  const ExtrinsicResult result = [&] {
+    try {
+      return calibrate_extrinsics(capture.rig(), observations, args.options);
+    } catch (const InvalidInput& e) {
+      throw InvalidInput(capture.dir().string() + ": " + e.what());
+    }
+  }();
 
   std::cout << "camera      detections  observations  error before BA  after BA (px)\n";
   for (const CameraCalibrationReport& c : result.cameras) {

@@ -74,6 +74,9 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "seam-smoothing: must be in [0, 4] pixels"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-fairing 9", "seam-fairing: must be in [0, 8] rounds"},
+      // The largest int: one frame past it would overflow.
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames 2147483647",
+       "--frames: \"2147483647\" reaches past the last frame of a capture with 1 frames"},
       // Usage errors that CLI11 finds: one line too, with the same prefix, exit 2.
       {"frobnicate", "zipfusion: error: unknown command \"frobnicate\" (commands: synth, info,"},
       {"", "zipfusion: error: A subcommand is required"},

@@ -29,7 +29,14 @@ inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
   FrameRange range{0, frame_count};
   const size_t colon = text.find(':');
   if (colon == std::string::npos) {
-    if (!text.empty()) range = {number(text, 0), number(text, 0) + 1};
+    // Frame N is N:N+1, past the end whenever N is (N + 1 does not overflow: N < frame_count).
+    if (!text.empty()) {
+      const int frame = number(text, 0);
+      if (frame >= frame_count) {
+        throw InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
+      }
+      range = {frame, frame + 1};
+    }
   } else {
     range = {number(text.substr(0, colon), 0), number(text.substr(colon + 1), frame_count)};
   }

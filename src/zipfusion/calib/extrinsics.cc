@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <mutex>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -136,11 +137,24 @@ WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& 
     }
   }
   WandObservations obs(capture.camera_count(), capture.frame_count());
+  std::mutex unreadable_mutex;
   for (int f = 0; f < capture.frame_count(); ++f) {
     parallel_for(0, capture.camera_count(), [&](int c) {
       const std::filesystem::path file = capture.color_path(f, c);
       if (file.empty()) return;
-      const ColorImage image = read_color_image(file);
+      // A file whose bytes cannot be read or decoded costs its camera this frame, as a missing one.
+      ColorImage image;
+      try {
+        image = read_color_image(file);
+      } catch (const CorruptFile& e) {
+        std::lock_guard lock(unreadable_mutex);
+        obs.unreadable.emplace_back(e.what());
+        return;
+      } catch (const IoError& e) {
+        std::lock_guard lock(unreadable_mutex);
+        obs.unreadable.emplace_back(e.what());
+        return;
+      }
       const Intrinsics& k = *rig.cameras[c].color_intrinsics;
       if (image.width != k.width || image.height != k.height) {
         throw InvalidInput(file.string() + ": color_intrinsics: image is " + std::to_string(image.width) + "x" +
@@ -155,6 +169,7 @@ WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& 
     }, num_threads);
     if (progress) progress(f + 1, capture.frame_count());
   }
+  std::sort(obs.unreadable.begin(), obs.unreadable.end());
   return obs;
 }
 

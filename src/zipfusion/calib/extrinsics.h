@@ -34,6 +34,7 @@ struct WandObservations {
   int frames = 0;
   std::vector<Eigen::Vector2d> red, green;  // colour-image pixels
   std::vector<unsigned char> usable;        // 1 = both LEDs found once each
+  std::vector<std::string> unreadable;      // "FILE: reason" for each colour file that could not be read or decoded (its frame unusable), sorted
 
   WandObservations() = default;
   WandObservations(int camera_count, int frame_count)
@@ -43,7 +44,8 @@ struct WandObservations {
 };
 
 //! Detects the wand in every colour frame of a capture. Throws InvalidInput for a camera without
-//! colour (the wand is seen in colour) and for corrupt frames; missing frame files leave the frame
+//! colour (the wand is seen in colour) and for a frame of another size than rig.json's; missing
+//! frame files, and files that cannot be read or decoded (listed in `unreadable`), leave the frame
 //! unusable. `progress(done, total)` after each frame.
 WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& options = {}, int num_threads = 0,
                              const std::function<void(int, int)>& progress = {});
