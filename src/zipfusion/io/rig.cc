@@ -66,8 +66,11 @@ class Fields {
   }
   int integer(const std::string& key, int min_value) const {
     const json& v = required(key);
-    if (!v.is_number_integer()) fail(field(key), "must be an integer, got " + quoted(v));
-    const long long i = v.get<long long>();
+    // 640.0 is 640: a writer that keeps sizes as floats (Python's w / 2) writes it so.
+    const bool integral_float = v.is_number_float() && std::isfinite(v.get<double>()) && v.get<double>() == std::floor(v.get<double>()) &&
+                                std::abs(v.get<double>()) <= 1e15;
+    if (!v.is_number_integer() && !integral_float) fail(field(key), "must be an integer, got " + quoted(v));
+    const long long i = integral_float ? static_cast<long long>(v.get<double>()) : v.get<long long>();
     if (i < min_value || i > 1'000'000'000) {
       fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + quoted(v));
     }

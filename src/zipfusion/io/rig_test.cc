@@ -85,6 +85,20 @@ TEST_F(RigFile, RoundTripIsExact) {
   EXPECT_EQ(format_rig(back), format_rig(rig));
 }
 
+// A whole number written as a float (640.0, as a writer that keeps sizes as floats writes it) is
+// that integer; 2.5 is not (EveryMalformedFieldIsNamed).
+TEST_F(RigFile, IntegralFloatsAreIntegers) {
+  const Rig rig = example_rig();
+  json j = json::parse(format_rig(rig));
+  j["frame_count"] = static_cast<double>(rig.frame_count);
+  j["cameras"][0]["depth_intrinsics"]["width"] = static_cast<double>(rig.cameras[0].depth_intrinsics.width);
+  ASSERT_NE(j.dump().find(".0,"), std::string::npos);  // written as floats
+  write_file_atomic(dir_ / "rig.json", j.dump());
+  const Rig back = read_rig(dir_ / "rig.json");
+  EXPECT_EQ(back.frame_count, rig.frame_count);
+  EXPECT_EQ(back.cameras[0].depth_intrinsics.width, rig.cameras[0].depth_intrinsics.width);
+}
+
 TEST_F(RigFile, UnknownKeysAreIgnoredAndDefaultsApply) {
   const std::string error = error_after([](json& j) {
     j["comment"] = "made by hand";
