@@ -1,8 +1,12 @@
 // libFuzzer target: depth PNGs and colour PNG/JPEG images (io/image_io.h), the bytes of every
-// frame file a capture holds. A decoded image must be whole and survive a lossless round trip.
+// frame file a capture holds. A decoded image must be whole and survive a lossless round trip. A
+// refusal must be a CorruptFile (which a capture's reader leaves out, as a missing frame) unless
+// the image decoded but is not what the format promises (bit depth, colour space), which stops a
+// run: corrupt bytes must never do that.
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "fuzz/fuzz_check.h"
@@ -11,6 +15,23 @@
 namespace zipfusion::fuzz {
 namespace {
 
+template <class Decode>
+auto decoded_or_corrupt(const char* decoder, Decode decode) {
+  return decoded_or_error(decoder, [&] {
+    try {
+      return decode();
+    } catch (const CorruptFile&) {
+      throw;
+    } catch (const InvalidInput& e) {
+      const std::string message = e.what();
+      if (message.find(": bit depth: ") == std::string::npos && message.find(": colour space: ") == std::string::npos) {
+        fail("a refusal that is not a CorruptFile: " + message);
+      }
+      throw;
+    }
+  });
+}
+
 template <class T>
 void check_shape(const Image<T>& image) {
   if (image.width <= 0 || image.height <= 0) fail("an empty image was returned");
@@ -18,7 +39,7 @@ void check_shape(const Image<T>& image) {
 }
 
 void check_depth(const std::vector<std::uint8_t>& bytes) {
-  const auto depth = decoded_or_error("depth", [&] { return decode_depth_png(bytes, kSource); });
+  const auto depth = decoded_or_corrupt("depth", [&] { return decode_depth_png(bytes, kSource); });
   if (!depth) return;
   check_shape(*depth);
   const DepthImage again = must_decode([&] { return decode_depth_png(encode_depth_png(*depth), kSource); }, "depth PNG");
@@ -26,7 +47,7 @@ void check_depth(const std::vector<std::uint8_t>& bytes) {
 }
 
 void check_color(const std::vector<std::uint8_t>& bytes) {
-  const auto color = decoded_or_error("color", [&] { return decode_color_image(bytes, kSource); });
+  const auto color = decoded_or_corrupt("color", [&] { return decode_color_image(bytes, kSource); });
   if (!color) return;
   check_shape(*color);
   const ColorImage again = must_decode([&] { return decode_color_image(encode_color_image(*color, ".png"), kSource); }, "colour PNG");

@@ -168,8 +168,9 @@ void run_bench(const BenchArgs& args) {
   std::vector<double> decode_ms;
   const FrameSource source = capture_source(capture, 0, count);
   double ms = 0;
+  UnreadableFrames unreadable("bench");
   while (std::optional<FrameSet> set = source(ms)) {
-    warn_unreadable_files("bench", capture.rig(), *set);
+    unreadable.report(capture.rig(), *set);
     frames.push_back(std::move(*set));
     decode_ms.push_back(ms);
     show_progress("decode", static_cast<int>(frames.size()), count);

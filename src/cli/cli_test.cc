@@ -149,21 +149,51 @@ TEST_F(Cli, CorruptFrameDegradesItsFrameSetNotTheRun) {
   std::vector<std::uint8_t> bytes = read_file_bytes(depth);
   bytes.resize(bytes.size() / 2);
   write_file_atomic(depth, bytes);
+  const fs::path color = capture / "cam0" / "color" / "000002.jpg";
+  write_file_atomic(color, std::string_view(""));
   const fs::path out = dir_ / "out";
   const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(line_count(r.err), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("reconstruct: warning: " + depth.string() + ": cannot decode image (corrupt or truncated): ", 0), 0u) << r.err;
-  EXPECT_NE(r.err.find("; cam1 left out of frame set 1\n"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err, "reconstruct: warning: " + depth.string() + ": cannot decode image (corrupt or truncated): the file ends early; cam1 left "
+                   "out of frame set 1\nreconstruct: warning: " + color.string() + ": not a JPEG or PNG file; cam0 has no colour in frame set 2\n");
   const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(out / "stats.json"));
-  EXPECT_EQ(stats["unreadable_files"], 1);
+  EXPECT_EQ(stats["unreadable_file_count"], 2);
   ASSERT_EQ(stats["frames"].size(), 3u);
   for (int f = 0; f < 3; ++f) {
     EXPECT_TRUE(fs::exists(out / frame_file_name(f, ".ply"))) << f;
     EXPECT_EQ(stats["frames"][f]["cameras_used"], f == 1 ? 1 : 2) << f;
-    EXPECT_EQ(stats["frames"][f].contains("unreadable_files"), f == 1) << f;
+    EXPECT_EQ(stats["frames"][f].contains("unreadable_files"), f > 0) << f;
   }
   EXPECT_EQ(stats["frames"][1]["unreadable_files"][0].get<std::string>().rfind(depth.string() + ": ", 0), 0u);
+  // info lists them; --strict makes the first an error.
+  const CommandResult info = run("info " + capture.string() + " --json");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const nlohmann::json described = nlohmann::json::parse(info.out);
+  EXPECT_EQ(described["cameras"][0]["unreadable_frame_files"], nlohmann::json::array({color.string() + ": not a JPEG or PNG file"}));
+  EXPECT_EQ(described["cameras"][1]["unreadable_frame_files"].size(), 1u);
+  const CommandResult strict = run("info " + capture.string() + " --strict");
+  EXPECT_EQ(strict.exit_code, 2);
+  EXPECT_EQ(line_count(strict.err), 1) << strict.err;
+}
+
+// When no depth of the capture decodes (every file a Git LFS pointer, say), going on would write
+// empty meshes and a warning per file: the first frame set stops the run instead, before anything
+// is written.
+TEST_F(Cli, ACaptureWhoseDepthDoesNotDecodeIsAnError) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120").exit_code, 0);
+  for (const char* camera : {"cam0", "cam1"}) {
+    for (const char* frame : {"000000.png", "000001.png"}) {
+      write_file_atomic(capture / camera / "depth" / frame, std::string_view("version https://git-lfs.github.com/spec/v1\n"));
+    }
+  }
+  const fs::path out = dir_ / "out";
+  const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find(": not a PNG file (depth must be 16-bit PNG); no depth of the capture has decoded up to this frame set"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 // A run that fails before writing a mesh (here a frame file that is a loop of links, which cannot

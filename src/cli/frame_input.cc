@@ -1,6 +1,8 @@
 #include "cli/frame_input.h"
 
+#include <algorithm>
 #include <iostream>
+#include <sstream>
 #include <type_traits>
 
 #include "cli/rig_poses.h"
@@ -35,17 +37,31 @@ int Input::unreadable_count() {
   return count;
 }
 
-int warn_unreadable_files(const std::string& command, const Rig& rig, const FrameSet& set) {
-  int count = 0;
+int UnreadableFrames::report(const Rig& rig, const FrameSet& set) {
+  const std::vector<std::string> files = unreadable_files(set);
+  const bool has_depth = std::any_of(set.cameras.begin(), set.cameras.end(), [](const CameraFrame& c) { return c.has_depth; });
+  if (!depth_decoded_ && !has_depth && !files.empty()) {
+    throw InvalidInput(files.front() + "; no depth of the capture has decoded up to this frame set (are its files unreadable: Git LFS "
+                                        "pointers, no read permission?)");
+  }
+  depth_decoded_ = depth_decoded_ || has_depth;
   for (size_t c = 0; c < set.cameras.size(); ++c) {
     for (const std::string& file : set.cameras[c].unreadable) {
-      // A camera without depth is left out; one with depth but no colour makes grey vertices.
-      std::cerr << command << ": warning: " << file << "; " << rig.cameras.at(c).name
-                << (set.cameras[c].has_depth ? " has no colour in frame set " : " left out of frame set ") << set.index << "\n";
-      ++count;
+      ++count_;
+      if (count_ > kListed + 1) continue;
+      // One write per line: the sink thread may print too.
+      std::ostringstream line;
+      if (count_ == kListed + 1) {
+        line << command_ << ": warning: more frame files cannot be decoded; they are counted, not listed\n";
+      } else {
+        // A camera without depth is left out; one with depth but no colour makes grey vertices.
+        line << command_ << ": warning: " << file << "; " << rig.cameras.at(c).name
+             << (set.cameras[c].has_depth ? " has no colour in frame set " : " left out of frame set ") << set.index << "\n";
+      }
+      std::cerr << line.str() << std::flush;
     }
   }
-  return count;
+  return static_cast<int>(files.size());
 }
 
 void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in) {
@@ -56,9 +72,10 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.capture.emplace(Capture::open(args.capture));
     in.rig = rig_path.empty() ? in.capture->rig() : rig_with_poses_from(in.capture->rig(), rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
-    in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in, command](double& decode_ms) {
+    in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
+                 report = std::make_shared<UnreadableFrames>(command)](double& decode_ms) {
       std::optional<FrameSet> set = source(decode_ms);
-      if (set && warn_unreadable_files(command, in.capture->rig(), *set) > 0) {
+      if (set && report->report(in.capture->rig(), *set) > 0) {
         std::lock_guard lock(in.unreadable_mutex);
         in.unreadable[set->index] = unreadable_files(*set);
       }

@@ -48,10 +48,25 @@ struct Input {
   int unreadable_count();
 };
 
-//! Prints one line to stderr for each of `set`'s unreadable frame files (CameraFrame::unreadable),
-//! "COMMAND: warning: FILE: reason; CAMERA left out of frame set N" (or "has no colour in"), and
-//! returns how many.
-int warn_unreadable_files(const std::string& command, const Rig& rig, const FrameSet& set);
+//! A command's frame files that cannot be decoded (CameraFrame::unreadable), frame set by frame set.
+//! Each is a warning line, "COMMAND: warning: FILE: reason; CAMERA left out of frame set N" (or
+//! "has no colour in"), up to kListed, then only counted. Until some depth of the capture has
+//! decoded, a frame set without any depth and with a file that failed is an error instead: every
+//! file is then probably unreadable (Git LFS pointers, no read permission), which going on would
+//! turn into empty meshes and a warning per file.
+class UnreadableFrames {
+ public:
+  explicit UnreadableFrames(std::string command) : command_(std::move(command)) {}
+  //! Warns of `set`'s unreadable files and returns how many it had; throws InvalidInput as above.
+  int report(const Rig& rig, const FrameSet& set);
+  int count() const { return count_; }
+
+ private:
+  static constexpr int kListed = 20;
+  std::string command_;
+  int count_ = 0;
+  bool depth_decoded_ = false;
+};
 
 //! Opens the capture or the cameras. `rig_path` (--rig): poses for the capture, or the
 //! calibration of live cameras; `register_mode` is checked against --live. Throws InvalidInput

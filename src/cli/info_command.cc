@@ -123,6 +123,7 @@ void run_info(const InfoArgs& args) {
     const CameraModel& cam = rig.cameras[c];
     CameraStats& s = stats[c];
     std::sort(s.depth_samples.begin(), s.depth_samples.end());
+    std::sort(s.unreadable.begin(), s.unreadable.end());  // gathered in the order the frames finished
     auto quantile = [&](double q) { return s.depth_samples.empty() ? 0.0 : s.depth_samples[static_cast<size_t>(q * (s.depth_samples.size() - 1))]; };
     const auto [azimuth, elevation] = view_direction_deg(cam.world_from_depth);
     const Eigen::Vector3d position = cam.world_from_depth.translation();
@@ -191,7 +192,7 @@ void run_info(const InfoArgs& args) {
   for (const CameraStats& s : stats) unreadable.insert(unreadable.end(), s.unreadable.begin(), s.unreadable.end());
   if (!unreadable.empty()) {
     std::sort(unreadable.begin(), unreadable.end());
-    std::cout << "\nunreadable frame files: " << unreadable.size() << " in the frames examined; those frame sets are made without them\n";
+    std::cout << "\nunreadable frame files: " << unreadable.size() << " in the frames examined; reconstruct leaves those cameras out of those frame sets\n";
     for (const std::string& file : unreadable) std::cout << "  " << file << "\n";
   }
 }

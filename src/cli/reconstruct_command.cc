@@ -62,7 +62,7 @@ void run_reconstruct(ReconstructArgs& args) {
 
   // The output folder is checked before the reconstruction is set up (--register once registers
   // the rig first, which takes seconds).
-  const fs::path out_dir = args.out;
+  const fs::path out_dir = folder_path(args.out);  // "out/." could not be removed on failure
   std::error_code ec;
   const bool out_dir_is_new = !fs::exists(out_dir, ec);
   if (!out_dir_is_new) check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
@@ -72,7 +72,8 @@ void run_reconstruct(ReconstructArgs& args) {
     Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
     write_reconstruction(args, in, reconstruction, out_dir);
   } catch (...) {
-    // A run that fails before writing anything (a corrupt first frame) leaves no empty folder.
+    // A run that fails before writing anything (no depth of the capture decodes, a frame file
+    // that is a loop of links) leaves no empty folder.
     if (out_dir_is_new && fs::is_empty(out_dir, ec)) fs::remove(out_dir, ec);
     throw;
   }
@@ -137,7 +138,7 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
   stats["wall_ms"] = pipeline.wall_ms;
-  if (!in.live) stats["unreadable_files"] = in.unreadable_count();
+  if (!in.live) stats["unreadable_file_count"] = in.unreadable_count();
   write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";

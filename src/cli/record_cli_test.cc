@@ -319,7 +319,7 @@ TEST_F(RecordCli, BadOptionsGiveOneLineNamingTheOption) {
       {false, "record --out " + out, "--devices, --replay: give exactly one", 2},
       {false, "record --devices all --replay " + full + " --out " + out, "--devices, --replay: give exactly one", 2},
       {false, "record --replay " + full, "--out: required", 2},
-      {false, "record --replay " + full + " --out " + out + " --frames -1", "--frames: must be >= 0", 2},
+      {false, "record --replay " + full + " --out " + out + " --frames -1", "--frames: must be in [0, 1000000] (0 = no limit), got -1", 2},
       {false, "record --replay " + full + " --out " + out + " --jpeg-quality 0", "--jpeg-quality: must be in [1, 100]", 2},
       {false, "record --replay " + full + " --out " + (dir_ / "busy").string(), "choose a new --out", 2},
       {false, "record --replay " + (dir_ / "nothing").string() + " --out " + out, "INDEX.txt", 3},

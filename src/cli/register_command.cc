@@ -46,9 +46,10 @@ void run_register(RegisterArgs& args) {
   const std::vector<int> frames = spread_frames(range, args.max_frames);
 
   std::vector<std::vector<Image<float>>> depth;
+  UnreadableFrames unreadable("register");
   for (size_t i = 0; i < frames.size(); ++i) {
     const FrameSet set = capture.load_frame(frames[i]);
-    warn_unreadable_files("register", capture.rig(), set);
+    unreadable.report(capture.rig(), set);
     depth.push_back(registration_depth(start, set, args.options));
     show_progress("register: loading", static_cast<int>(i) + 1, static_cast<int>(frames.size()));
   }

@@ -100,7 +100,7 @@ class PacedSource {
       const Clock::time_point t = Clock::now();
       set = capture_.load_frame(index);
       decode_ms = ms_since(t);
-      warn_unreadable_files("serve", capture_.rig(), set);
+      unreadable_.report(capture_.rig(), set);
       if (loop_) cache_.push_back(set);
     }
     std::this_thread::sleep_until(due);
@@ -118,6 +118,7 @@ class PacedSource {
   const Clock::time_point start_ = Clock::now();
   long sequence_ = 0;
   std::vector<FrameSet> cache_;
+  UnreadableFrames unreadable_{"serve"};
 };
 
 void run_serve(ServeArgs& args) {

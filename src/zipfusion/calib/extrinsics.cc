@@ -6,8 +6,8 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
-#include <mutex>
 #include <cmath>
+#include <mutex>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 

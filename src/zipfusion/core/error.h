@@ -24,7 +24,7 @@ class CorruptFile : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
-//! A file that cannot be opened, read, decoded or written.
+//! A file that cannot be opened, read or written (or looked at: a loop of links).
 class IoError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -121,16 +121,17 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
                        frame_file_name(frames - 1, ".png") +
                        (last_frame_seen < 0 ? " (no depth frames at all)" : " (last depth frame is " + frame_file_name(last_frame_seen, ".png") + ")"));
   }
-  capture.color_extension_.resize(rig.cameras.size());
+  capture.color_file_.resize(rig.cameras.size());
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     std::vector<std::uint8_t> has_depth(frames, 0);
     for (const auto& [f, extension] : depth_files[c]) has_depth[f] = 1;
-    std::vector<ColorFile>& color_ext = capture.color_extension_[c];
+    std::vector<ColorFile>& color_ext = capture.color_file_[c];
     color_ext.assign(frames, ColorFile::kNone);
     for (const auto& [f, extension] : color_files[c]) {
       // Both a .jpg and a .png of one frame: which one was meant is not known.
       if (color_ext[f] != ColorFile::kNone) {
-        throw InvalidInput((dir / rig.cameras[c].name / "color" / frame_file_name(f, ".jpg")).string() + ": a .jpg and a .png of the same frame");
+        const fs::path jpg = dir / rig.cameras[c].name / "color" / frame_file_name(f, ".jpg");
+        throw InvalidInput(jpg.string() + ", " + fs::path(jpg).replace_extension(".png").filename().string() + ": a .jpg and a .png of the same frame");
       }
       color_ext[f] = extension == ".jpg" ? ColorFile::kJpg : ColorFile::kPng;
     }
@@ -188,7 +189,7 @@ fs::path Capture::depth_path(int frame, int camera) const {
 }
 
 fs::path Capture::color_path(int frame, int camera) const {
-  const ColorFile file = color_extension_.at(camera).at(frame);
+  const ColorFile file = color_file_.at(camera).at(frame);
   if (file == ColorFile::kNone) return {};
   return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, file == ColorFile::kJpg ? ".jpg" : ".png");
 }

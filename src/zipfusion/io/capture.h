@@ -11,6 +11,7 @@
 //! its reason (CameraFrame::unreadable). With `strict`, either is an error instead.
 //! Thread safety: a Capture is immutable after open(); load_* may be called concurrently.
 
+#include <cstdint>
 #include <filesystem>
 #include <initializer_list>
 #include <optional>
@@ -76,9 +77,9 @@ class Capture {
   std::filesystem::path color_path(int frame, int camera) const;
 
   //! Decodes one camera's frame. A missing file leaves has_depth/has_color false; so does a file
-  //! that cannot be read or decoded (CorruptFile, IoError), listed in `unreadable`; opened strict,
-  //! either throws. A file whose size or bit depth does not match rig.json throws InvalidInput
-  //! naming it, strict or not. Depth whose intrinsics have distortion comes back undistorted: each
+  //! whose bytes cannot be read or decoded (CorruptFile, IoError), listed in `unreadable`; opened
+  //! strict, either throws. A file that cannot even be looked at (a loop of links) throws IoError,
+  //! and one whose size or bit depth does not match rig.json throws InvalidInput, strict or not. Depth whose intrinsics have distortion comes back undistorted: each
   //! pixel of a pinhole camera with the same fx, fy, cx, cy takes the depth of the recorded pixel
   //! nearest to where its ray falls (0 where that lies outside the image), so the rest of
   //! zipfusion, which back-projects depth through the pinhole model, sees straight rays.
@@ -93,7 +94,7 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
-  std::vector<std::vector<ColorFile>> color_extension_;  // [camera][frame]
+  std::vector<std::vector<ColorFile>> color_file_;  // [camera][frame]
   // Per pinhole pixel of every camera whose depth has distortion, the recorded pixel it takes its
   // depth from (−1: none): camera c's map is [depth_map_begin_[c], depth_map_begin_[c + 1]), empty
   // for a camera without distortion.

@@ -154,6 +154,30 @@ TEST_F(SmallCapture, AnUnusableFrameFileDegradesLikeAMissingOne) {
   EXPECT_TRUE(unreadable_files(capture.load_frame(0)).empty());
 }
 
+// A frame "file" that cannot be read (here a folder) is left out like an undecodable one.
+TEST_F(SmallCapture, AFrameThatCannotBeReadDegradesLikeAnUndecodableOne) {
+  const fs::path file = dir_ / "b" / "depth" / "000001.png";
+  fs::remove(file);
+  fs::create_directories(file);
+  const FrameSet set = Capture::open(dir_).load_frame(1);
+  EXPECT_FALSE(set.cameras[1].has_depth);
+  EXPECT_TRUE(set.cameras[0].has_depth);
+  EXPECT_EQ(unreadable_files(set), std::vector<std::string>{file.string() + ": not a regular file (a folder, device or pipe)"});
+  EXPECT_THROW(Capture::open(dir_, {.strict = true}).load_frame(1), IoError);
+}
+
+TEST(FolderPath, TrailingSeparatorsAndDotsGo) {
+  EXPECT_EQ(folder_path("out"), fs::path("out"));
+  EXPECT_EQ(folder_path("out/"), fs::path("out"));
+  EXPECT_EQ(folder_path("out/."), fs::path("out"));
+  EXPECT_EQ(folder_path("out/./"), fs::path("out"));
+  EXPECT_EQ(folder_path("a/out//"), fs::path("a/out"));
+  EXPECT_EQ(folder_path("/tmp/out/"), fs::path("/tmp/out"));
+  EXPECT_EQ(folder_path("link/../out"), fs::path("link/../out"));  // ".." is the OS's to resolve, through a link
+  EXPECT_EQ(folder_path("."), fs::path("."));
+  EXPECT_EQ(folder_path("/"), fs::path("/"));
+}
+
 // A link to nothing is a missing frame at open, as loading finds it (info listed it as present).
 TEST_F(SmallCapture, ALinkToNothingIsAMissingFrame) {
   const fs::path file = dir_ / "b" / "depth" / "000001.png";
@@ -172,11 +196,11 @@ TEST_F(SmallCapture, ALinkToNothingIsAMissingFrame) {
 TEST_F(SmallCapture, AJpgAndAPngOfOneFrameAreRefused) {
   write_color_image(dir_ / "a" / "color" / "000001.jpg", pattern_color(kWidth, kHeight, 1));
   const std::string error = open_error();
-  EXPECT_EQ(error, (dir_ / "a" / "color" / "000001.jpg").string() + ": a .jpg and a .png of the same frame");
+  EXPECT_EQ(error, (dir_ / "a" / "color" / "000001.jpg").string() + ", 000001.png: a .jpg and a .png of the same frame");
 }
 
-// A frame_count far beyond the files is found out from the files present, without a slot for each
-// declared frame (a billion made `info` fail with std::bad_alloc).
+// A frame_count far beyond the files is named with the last frame there is (rig.json caps it at
+// a million, so a billion no longer reaches the scan: it made `info` fail with std::bad_alloc).
 TEST_F(SmallCapture, AFrameCountFarBeyondTheFilesIsNamed) {
   rig_.frame_count = kMostFrames;
   write_rig(dir_ / "rig.json", rig_);

@@ -73,9 +73,15 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
 }
 
 std::filesystem::path folder_path(const std::filesystem::path& dir) {
-  std::filesystem::path normal = dir.lexically_normal();
-  if (!normal.has_filename() && normal.has_relative_path()) normal = normal.parent_path();
-  return normal;
+  // Only trailing separators and "." go: "a/../b" is left to the OS, which resolves ".." through
+  // a link where a lexical normalisation would not.
+  std::filesystem::path folder = dir;
+  while (folder.has_relative_path() && (!folder.has_filename() || folder.filename() == ".")) {
+    const std::filesystem::path parent = folder.parent_path();
+    if (parent.empty()) break;  // "." itself
+    folder = parent;
+  }
+  return folder;
 }
 
 void check_new_folder(const std::filesystem::path& asked_for, std::string_view option) {

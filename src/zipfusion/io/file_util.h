@@ -19,7 +19,8 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_file_atomic(const std::filesystem::path& path, std::string_view text);
 
-//! The folder a path names: "out/" and "out/." name out (lexically normal, no trailing separator).
+//! The folder a path names, without trailing separators or "." components: "out/" and "out/." are
+//! "out"; "." and "/" stay.
 std::filesystem::path folder_path(const std::filesystem::path& dir);
 
 //! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command

@@ -31,7 +31,7 @@ bool is_jpeg(const std::vector<std::uint8_t>& bytes) {
 // ("Premature end of JPEG file", "Corrupt JPEG data"), so a cut-off colour frame came back as an
 // image with grey rows and no error; and libpng printed its own lines before zipfusion's. Here
 // every problem the libraries report, warnings about the pixels included, becomes one
-// InvalidInput naming the file, and nothing is printed.
+// CorruptFile naming the file, and nothing is printed.
 
 [[noreturn]] void throw_undecodable(const std::string& source, const char* problem) {
   throw CorruptFile(source + ": cannot decode image (corrupt or truncated): " + problem);

@@ -1,10 +1,12 @@
 #pragma once
 //! \file
 //! Depth and colour image files of a rig capture, decoded by libpng and libjpeg and encoded by
-//! OpenCV. Decoding checks what the format promises (16-bit single-channel depth PNG; 8-bit colour
-//! JPEG/PNG) and throws InvalidInput naming the file and what is wrong (a corrupt or truncated
-//! file included, even where the library could make up the missing pixels), or IoError when the
-//! file cannot be read. It never prints.
+//! OpenCV. Decoding throws, naming the file: CorruptFile (an InvalidInput) for bytes that do not
+//! decode (not the format, corrupt, truncated, even where the library could make up the missing
+//! pixels, or a size no camera has); plain InvalidInput for an image that decodes but is not what
+//! the capture format promises (depth not 16-bit single-channel, colour not 8-bit, a CMYK JPEG);
+//! IoError when the file cannot be read. Capture::load_camera_frame leaves out the first and the
+//! last and stops at the second. It never prints.
 
 #include <cstdint>
 #include <filesystem>

@@ -120,7 +120,7 @@ Intrinsics parse_intrinsics(const Fields& f) {
   // A size no camera has would only be found when the first frame is decoded, after what is
   // sized by it (a distortion map of every pixel) has been built.
   if (!plausible_image_size(k.width, k.height)) {
-    f.fail(f.field("width"), std::to_string(k.width) + "x" + std::to_string(k.height) + " is larger than any camera's image (at most " +
+    f.fail(f.field(k.height > static_cast<int>(kMostImageSide) && k.width <= static_cast<int>(kMostImageSide) ? "height" : "width"), std::to_string(k.width) + "x" + std::to_string(k.height) + " is larger than any camera's image (at most " +
                                  std::to_string(kMostImageSide) + " pixels a side and 2^26 pixels)");
   }
   // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175

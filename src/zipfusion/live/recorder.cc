@@ -49,7 +49,9 @@ void check_rig_matches(const Rig& rig, const LiveRig& live) {
 }  // namespace
 
 void RecordOptions::validate() const {
-  if (max_frames < 0) throw InvalidInput("--frames: must be >= 0 (0 = no limit), got " + std::to_string(max_frames));
+  if (max_frames < 0 || max_frames > kMostFrames) {
+    throw InvalidInput("--frames: must be in [0, " + std::to_string(kMostFrames) + "] (0 = no limit), got " + std::to_string(max_frames));
+  }
   if (!(max_seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = no limit)");
   if (color_extension != ".jpg" && color_extension != ".png") throw InvalidInput("--color-format: must be jpg or png");
   if (jpeg_quality < 1 || jpeg_quality > 100) throw InvalidInput("--jpeg-quality: must be in [1, 100]");
@@ -82,7 +84,8 @@ RecordResult record_capture(LiveRig& live, const Rig& rig_in, const fs::path& ou
   int skew_sets = 0;
   std::vector<std::vector<PendingFile>> files(n);
   while (true) {
-    if (options.max_frames > 0 && result.frame_sets >= options.max_frames) {
+    // A capture holds at most kMostFrames (six-digit frame files): about 9 hours at 30 fps.
+    if ((options.max_frames > 0 && result.frame_sets >= options.max_frames) || result.frame_sets >= kMostFrames) {
       result.limit_reached = true;
       break;
     }

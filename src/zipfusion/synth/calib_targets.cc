@@ -12,7 +12,6 @@
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
-#include "zipfusion/io/file_util.h"
 #include "zipfusion/io/image_io.h"
 #include "zipfusion/synth/kinect_model.h"
 
@@ -81,7 +80,7 @@ ColorImage to_color(const Image<Eigen::Vector3f>& linear, double noise_sigma, st
 
 void WandOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (frames < 2) fail("frames", "must be >= 2");
+  if (frames < 2 || frames > kMostFrames) fail("frames", "must be in [2, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
   if (!(led_distance_m > 0.05 && led_distance_m < 5)) fail("led-distance", "must be in (0.05, 5) metres");
   if (!(led_jitter_px >= 0 && led_jitter_px < 10)) fail("led-jitter", "must be in [0, 10) pixels");
   if (!(led_glow_radius_m > 0 && led_glow_radius_m < 0.1)) fail("led-glow-radius", "must be in (0, 0.1) metres");
@@ -278,9 +277,10 @@ std::vector<CheckerboardView> render_checkerboard_views(const CheckerboardOption
 }
 
 void write_checkerboard_views(const fs::path& out_dir, const CheckerboardOptions& options) {
-  // Rendered (which checks the options) before anything is made on disk, then written as a whole.
-  const std::vector<CheckerboardView> views = render_checkerboard_views(options);
+  // Options and folder checked before the rendering, nothing made on disk before it; then written as a whole.
+  options.validate();
   check_new_folder(out_dir, "--out");
+  const std::vector<CheckerboardView> views = render_checkerboard_views(options);
   write_folder_atomic(out_dir, [&](const fs::path& staging) {
     for (size_t i = 0; i < views.size(); ++i) {
       char name[32];
