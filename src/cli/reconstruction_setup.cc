@@ -14,7 +14,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
       ->capture_default_str();
   cmd->add_option("--filter", args.filter,
                   "Depth filter before triangulation: bilateral (the paper's square window), bilateral-separable (a row then a "
-                  "column pass, about 3x faster) or none")
+                  "column pass, 2-3x faster) or none")
       ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
       ->capture_default_str();
   cmd->add_option("--rig", args.rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
