@@ -60,9 +60,9 @@ class UnreadableFrames {
   //! Warns of `set`'s unreadable files and returns how many it had; throws InvalidInput as above.
   int report(const Rig& rig, const FrameSet& set);
   int count() const { return count_; }
+  static constexpr int kListed = 20;  // warning lines, then a count
 
  private:
-  static constexpr int kListed = 20;
   std::string command_;
   int count_ = 0;
   bool depth_decoded_ = false;

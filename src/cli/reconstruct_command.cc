@@ -143,8 +143,9 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
   if (const int unreadable = in.unreadable_count(); unreadable > 0) {
-    std::cout << "reconstruct: " << unreadable << " frame files could not be decoded (listed above and in stats.json); those frame sets "
-              << "were made without them\n";
+    const char* listed = unreadable > UnreadableFrames::kListed ? "the first listed above, all" : "listed above and";
+    std::cout << "reconstruct: " << unreadable << " frame files could not be decoded (" << listed
+              << " in stats.json); those frame sets were made without them\n";
   }
   if (in.live && pipeline.dropped > 0) {
     std::cout << "reconstruct: " << pipeline.dropped << " live frame sets were dropped because reconstruction fell behind the cameras\n";
