@@ -37,8 +37,8 @@ int Input::unreadable_count() {
   return count;
 }
 
-int UnreadableFrames::report(const Rig& rig, const FrameSet& set) {
-  const std::vector<std::string> files = unreadable_files(set);
+std::vector<std::string> UnreadableFrames::report(const Rig& rig, const FrameSet& set) {
+  std::vector<std::string> files = unreadable_files(set);
   const bool has_depth = std::any_of(set.cameras.begin(), set.cameras.end(), [](const CameraFrame& c) { return c.has_depth; });
   if (!depth_decoded_ && !has_depth && !files.empty()) {
     throw InvalidInput(files.front() + "; no depth of the capture has decoded up to this frame set (are its files unreadable: Git LFS "
@@ -61,7 +61,7 @@ int UnreadableFrames::report(const Rig& rig, const FrameSet& set) {
       std::cerr << line.str() << std::flush;
     }
   }
-  return static_cast<int>(files.size());
+  return files;
 }
 
 void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in) {
@@ -75,9 +75,10 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
                  report = std::make_shared<UnreadableFrames>(command)](double& decode_ms) {
       std::optional<FrameSet> set = source(decode_ms);
-      if (set && report->report(in.capture->rig(), *set) > 0) {
+      if (!set) return set;
+      if (std::vector<std::string> files = report->report(in.capture->rig(), *set); !files.empty()) {
         std::lock_guard lock(in.unreadable_mutex);
-        in.unreadable[set->index] = unreadable_files(*set);
+        in.unreadable[set->index] = std::move(files);
       }
       return set;
     };

@@ -57,14 +57,13 @@ struct Input {
 class UnreadableFrames {
  public:
   explicit UnreadableFrames(std::string command) : command_(std::move(command)) {}
-  //! Warns of `set`'s unreadable files and returns how many it had; throws InvalidInput as above.
-  int report(const Rig& rig, const FrameSet& set);
-  int count() const { return count_; }
+  //! Warns of `set`'s unreadable files and returns them (unreadable_files); throws InvalidInput as above.
+  std::vector<std::string> report(const Rig& rig, const FrameSet& set);
   static constexpr int kListed = 20;  // warning lines, then a count
 
  private:
   std::string command_;
-  int count_ = 0;
+  int count_ = 0;  // files reported so far
   bool depth_decoded_ = false;
 };
 

@@ -26,23 +26,22 @@ inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
     if (used != s.size() || value < 0) throw InvalidInput("--frames: expected A:B with whole numbers, got \"" + text + "\"");
     return value;
   };
+  auto past_the_end = [&] {
+    return InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
+  };
   FrameRange range{0, frame_count};
   const size_t colon = text.find(':');
   if (colon == std::string::npos) {
     // Frame N is N:N+1, past the end whenever N is (N + 1 does not overflow: N < frame_count).
     if (!text.empty()) {
       const int frame = number(text, 0);
-      if (frame >= frame_count) {
-        throw InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
-      }
+      if (frame >= frame_count) throw past_the_end();
       range = {frame, frame + 1};
     }
   } else {
     range = {number(text.substr(0, colon), 0), number(text.substr(colon + 1), frame_count)};
   }
-  if (range.end > frame_count) {
-    throw InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
-  }
+  if (range.end > frame_count) throw past_the_end();
   if (range.begin >= range.end) {
     throw InvalidInput("--frames: \"" + text + "\" selects no frames of a capture with " + std::to_string(frame_count) + " frames");
   }

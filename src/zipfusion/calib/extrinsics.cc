@@ -144,15 +144,9 @@ WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& 
       if (file.empty()) return;
       // A file whose bytes cannot be read or decoded costs its camera this frame, as a missing one.
       ColorImage image;
-      try {
-        image = read_color_image(file);
-      } catch (const CorruptFile& e) {
+      if (std::optional<std::string> reason = undecodable_reason([&] { image = read_color_image(file); })) {
         std::lock_guard lock(unreadable_mutex);
-        obs.unreadable.emplace_back(e.what());
-        return;
-      } catch (const IoError& e) {
-        std::lock_guard lock(unreadable_mutex);
-        obs.unreadable.emplace_back(e.what());
+        obs.unreadable.push_back(std::move(*reason));
         return;
       }
       const Intrinsics& k = *rig.cameras[c].color_intrinsics;

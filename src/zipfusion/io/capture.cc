@@ -203,18 +203,14 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   // is, its reason (which names it) kept for the caller to report; strict, the error goes up. A
   // decoded image of another size or bit depth than rig.json's breaks the capture's contract and
   // is an error either way.
-  auto decode_or_leave_out = [&](auto&& decode) {
-    try {
+  auto decode_or_leave_out = [&](const std::function<void()>& decode) {
+    if (options_.strict) {
       decode();
       return true;
-    } catch (const CorruptFile& e) {
-      if (options_.strict) throw;
-      out.unreadable.emplace_back(e.what());
-    } catch (const IoError& e) {
-      if (options_.strict) throw;
-      out.unreadable.emplace_back(e.what());
     }
-    return false;
+    std::optional<std::string> reason = undecodable_reason(decode);
+    if (reason) out.unreadable.push_back(std::move(*reason));
+    return !reason;
   };
   if (frame_file_present(depth_file)) {
     out.has_depth = decode_or_leave_out([&] {

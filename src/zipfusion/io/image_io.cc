@@ -261,6 +261,17 @@ ColorImage read_color_image(const std::filesystem::path& path) {
   return decode_color_image(read_file_bytes(path), path.string());
 }
 
+std::optional<std::string> undecodable_reason(const std::function<void()>& read) {
+  try {
+    read();
+  } catch (const CorruptFile& e) {
+    return e.what();
+  } catch (const IoError& e) {
+    return e.what();
+  }
+  return std::nullopt;
+}
+
 std::vector<std::uint8_t> encode_depth_png(const DepthImage& depth) {
   const cv::Mat m(depth.height, depth.width, CV_16UC1, const_cast<unsigned short*>(depth.data.data()));
   std::vector<std::uint8_t> bytes;

@@ -10,6 +10,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "zipfusion/core/image.h"
@@ -29,6 +32,11 @@ DepthImage read_depth_png(const std::filesystem::path& path);
 //! Decodes an 8-bit colour JPEG or PNG (grey images are expanded to RGB).
 ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std::string& source);
 ColorImage read_color_image(const std::filesystem::path& path);
+
+//! Calls `read` (which reads and decodes a file); where the file's bytes cannot be read or decoded
+//! (IoError, CorruptFile) returns the error's message, naming the file, instead of throwing. Every
+//! other error goes up: an image that decodes but breaks the format's promise is not bad data.
+std::optional<std::string> undecodable_reason(const std::function<void()>& read);
 
 std::vector<std::uint8_t> encode_depth_png(const DepthImage& depth);
 //! Encodes as JPEG (quality 1..100) or PNG, chosen by `extension` (".jpg", ".jpeg" or ".png").

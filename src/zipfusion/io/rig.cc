@@ -67,10 +67,10 @@ class Fields {
   int integer(const std::string& key, int min_value) const {
     const json& v = required(key);
     // 640.0 is 640: a writer that keeps sizes as floats (Python's w / 2) writes it so.
-    const bool integral_float = v.is_number_float() && std::isfinite(v.get<double>()) && v.get<double>() == std::floor(v.get<double>()) &&
-                                std::abs(v.get<double>()) <= 1e15;
+    const double as_float = v.is_number_float() ? v.get<double>() : 0;
+    const bool integral_float = v.is_number_float() && std::isfinite(as_float) && as_float == std::floor(as_float) && std::abs(as_float) <= 1e15;
     if (!v.is_number_integer() && !integral_float) fail(field(key), "must be an integer, got " + quoted(v));
-    const long long i = integral_float ? static_cast<long long>(v.get<double>()) : v.get<long long>();
+    const long long i = integral_float ? static_cast<long long>(as_float) : v.get<long long>();
     if (i < min_value || i > 1'000'000'000) {
       fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + quoted(v));
     }
@@ -120,8 +120,10 @@ Intrinsics parse_intrinsics(const Fields& f) {
   // A size no camera has would only be found when the first frame is decoded, after what is
   // sized by it (a distortion map of every pixel) has been built.
   if (!plausible_image_size(k.width, k.height)) {
-    f.fail(f.field(k.height > static_cast<int>(kMostImageSide) && k.width <= static_cast<int>(kMostImageSide) ? "height" : "width"), std::to_string(k.width) + "x" + std::to_string(k.height) + " is larger than any camera's image (at most " +
-                                 std::to_string(kMostImageSide) + " pixels a side and 2^26 pixels)");
+    const bool only_height_too_long = k.width <= static_cast<int>(kMostImageSide) && k.height > static_cast<int>(kMostImageSide);
+    f.fail(f.field(only_height_too_long ? "height" : "width"), std::to_string(k.width) + "x" + std::to_string(k.height) +
+                                                                " is larger than any camera's image (at most " + std::to_string(kMostImageSide) +
+                                                                " pixels a side and 2^26 pixels)");
   }
   // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175
   // degrees, past any pinhole lens. The principal point within an image's size of the image.
