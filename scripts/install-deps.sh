@@ -19,6 +19,7 @@ packages=(
   libfreenect-dev                    # live Kinect v1 capture (record, reconstruct --live); pulls libfreenect0.5, which ships fakenect's libfreenect.so
   libfreenect-bin                    # the fakenect wrapper script: the live tests replay recordings through it
   libgtest-dev libgmock-dev          # tests
+  bsdutils                           # script(1): a test runs a command on a terminal (Debian installs it everywhere)
   libbenchmark-dev                   # micro-benchmarks
   python3                            # scripts/bench_report.py writes docs/benchmarks.md
   chromium                           # the viewer's tests run in a real (headless) browser

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <string_view>
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
@@ -122,14 +123,16 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   const Capture capture = Capture::open(args.capture);
   const WandObservations observations =
       detect_wand(capture, {}, args.threads, [](int done, int total) { show_progress("detect", done, total); });
-  for (const std::string& file : observations.unreadable) std::cerr << "calibrate: warning: " << file << "; that camera's frame is not used\n";
+  for (const std::string& file : observations.unreadable) print_diagnostic("calibrate: warning: " + file + "; that camera's frame is not used");
   // What calibration finds wrong is about this capture's wand frames (a capture without a wand
   // leaves the cameras unconnected): named by the capture.
   const ExtrinsicResult result = [&] {
     try {
       return calibrate_extrinsics(capture.rig(), observations, args.options);
     } catch (const InvalidInput& e) {
-      throw InvalidInput(capture.dir().string() + ": " + e.what());
+      const std::string prefix = capture.dir().string() + ": ";
+      if (std::string_view(e.what()).starts_with(prefix)) throw;  // already names the capture (its rig.json)
+      throw InvalidInput(prefix + e.what());
     }
   }();
 

@@ -176,6 +176,54 @@ TEST_F(Cli, CorruptFrameDegradesItsFrameSetNotTheRun) {
   EXPECT_EQ(line_count(strict.err), 1) << strict.err;
 }
 
+// What a terminal shows of text written to it: "\r" returns to the line's start, "\033[K" erases
+// to its end, other characters overwrite.
+std::vector<std::string> terminal_lines(const std::string& written) {
+  std::vector<std::string> lines;
+  std::istringstream in(written);
+  for (std::string text; std::getline(in, text);) {
+    std::string line;
+    size_t cursor = 0;
+    for (size_t i = 0; i < text.size(); ++i) {
+      if (text[i] == '\r') {
+        cursor = 0;
+      } else if (text.compare(i, 3, "\033[K") == 0) {
+        line.resize(cursor);
+        i += 2;
+      } else {
+        if (cursor < line.size()) line[cursor] = text[i];
+        else line += text[i];
+        ++cursor;
+      }
+    }
+    lines.push_back(line);
+  }
+  return lines;
+}
+
+// On a terminal the progress is drawn in place; a warning takes its line and the progress is
+// drawn again below, so that no warning starts in the middle of a progress line.
+TEST_F(Cli, AWarningDoesNotRunIntoTheProgressLine) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 40 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path depth = capture / "cam1" / "depth" / "000030.png";  // decoded after the progress has begun
+  std::vector<std::uint8_t> bytes = read_file_bytes(depth);
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(depth, bytes);
+  // script(1) runs the command on a pseudo-terminal and copies what the terminal receives.
+  const fs::path shown = dir_ / "terminal";
+  const std::string command = "script -qec \"" + std::string(ZF_BINARY) + " reconstruct " + capture.string() + " --out " +
+                              (dir_ / "out").string() + " > /dev/null\" /dev/null > " + shown.string() + " < /dev/null";
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << command;
+  const std::string written = std::string(reinterpret_cast<const char*>(read_file_bytes(shown).data()), fs::file_size(shown));
+  EXPECT_EQ(terminal_lines(written),
+            (std::vector<std::string>{"reconstruct: warning: " + depth.string() +
+                                          ": cannot decode image (corrupt or truncated): the file ends early; cam1 left out of frame set 30",
+                                      "reconstruct: 40/40"}))
+      << written;
+}
+
 // When no depth of the capture decodes (every file a Git LFS pointer, say), going on would write
 // empty meshes and a warning per file: the first frame set stops the run instead, before anything
 // is written.

@@ -36,7 +36,15 @@ inline const CLI::Validator kFiniteNumber(
     },
     "FINITE");
 
-//! Progress on standard error, only when it is a terminal: "label: done/total".
+//! Progress on standard error, only when it is a terminal: "label: done/total", redrawn in place
+//! until done reaches total.
 void show_progress(const std::string& label, int done, int total);
+
+//! One line (without its newline) on standard error, for a warning while progress may be shown:
+//! it takes the unfinished progress line's place, and the progress is drawn again under it.
+void print_diagnostic(const std::string& line);
+
+//! The line of an error that ends the run; an unfinished progress line is ended first.
+void print_error(const std::string& line);
 
 }  // namespace zipfusion::cli

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <type_traits>
 
+#include "cli/commands.h"
 #include "cli/rig_poses.h"
 
 namespace zipfusion::cli {
@@ -49,16 +50,15 @@ std::vector<std::string> UnreadableFrames::report(const Rig& rig, const FrameSet
     for (const std::string& file : set.cameras[c].unreadable) {
       ++count_;
       if (count_ > kListed + 1) continue;
-      // One write per line: the sink thread may print too.
       std::ostringstream line;
       if (count_ == kListed + 1) {
-        line << command_ << ": warning: more frame files cannot be decoded; they are counted, not listed\n";
+        line << command_ << ": warning: more frame files cannot be decoded; they are counted, not listed";
       } else {
         // A camera without depth is left out; one with depth but no colour makes grey vertices.
         line << command_ << ": warning: " << file << "; " << rig.cameras.at(c).name
-             << (set.cameras[c].has_depth ? " has no colour in frame set " : " left out of frame set ") << set.index << "\n";
+             << (set.cameras[c].has_depth ? " has no colour in frame set " : " left out of frame set ") << set.index;
       }
-      std::cerr << line.str() << std::flush;
+      print_diagnostic(line.str());
     }
   }
   return files;

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <mutex>
+#include <string>
 
 #include "cli/commands.h"
 #include "zipfusion/core/error.h"
@@ -12,11 +14,42 @@
 
 namespace zipfusion::cli {
 
+namespace {
+
+// Progress and diagnostics share standard error, and the sink thread writes too.
+std::mutex stderr_mutex;
+std::string open_progress_line;  // what the terminal's last line shows unfinished; "" when none
+
+}  // namespace
+
 void show_progress(const std::string& label, int done, int total) {
   static const bool is_terminal = ::isatty(STDERR_FILENO);
   if (!is_terminal) return;
-  std::fprintf(stderr, "\r%s: %d/%d", label.c_str(), done, total);
-  if (done >= total) std::fprintf(stderr, "\n");
+  const std::lock_guard lock(stderr_mutex);
+  open_progress_line = label + ": " + std::to_string(done) + "/" + std::to_string(total);
+  std::fprintf(stderr, "\r%s", open_progress_line.c_str());
+  if (done >= total) {
+    std::fprintf(stderr, "\n");
+    open_progress_line.clear();
+  }
+  std::fflush(stderr);
+}
+
+void print_diagnostic(const std::string& line) {
+  const std::lock_guard lock(stderr_mutex);
+  // "\r" and erase to the end of the line: the line takes the progress line's place, which is
+  // drawn again under it.
+  if (!open_progress_line.empty()) std::fprintf(stderr, "\r\033[K");
+  std::fprintf(stderr, "%s\n", line.c_str());
+  if (!open_progress_line.empty()) std::fprintf(stderr, "%s", open_progress_line.c_str());
+  std::fflush(stderr);
+}
+
+void print_error(const std::string& line) {
+  const std::lock_guard lock(stderr_mutex);
+  if (!open_progress_line.empty()) std::fprintf(stderr, "\n");  // the progress stays as far as it got
+  open_progress_line.clear();
+  std::fprintf(stderr, "%s\n", line.c_str());
   std::fflush(stderr);
 }
 
@@ -58,13 +91,13 @@ int main(int argc, char** argv) {
     std::cerr << "zipfusion: error: " << e.what() << " (see --help)\n";
     return 2;
   } catch (const zipfusion::InvalidInput& e) {
-    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    zipfusion::cli::print_error(std::string("zipfusion: error: ") + e.what());
     return 2;
   } catch (const zipfusion::IoError& e) {
-    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    zipfusion::cli::print_error(std::string("zipfusion: error: ") + e.what());
     return 3;
   } catch (const std::exception& e) {
-    std::cerr << "zipfusion: error: " << e.what() << "\n";
+    zipfusion::cli::print_error(std::string("zipfusion: error: ") + e.what());
     return 1;
   }
   return 0;

@@ -178,6 +178,39 @@ TEST(FolderPath, TrailingSeparatorsAndDotsGo) {
   EXPECT_EQ(folder_path("/"), fs::path("/"));
 }
 
+// An output folder named through links is written where they end; the links stay links.
+TEST(WriteFolderAtomic, WritesThroughLinksAndKeepsThem) {
+  const fs::path dir = fs::temp_directory_path() / "zf_write_folder_through_links";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "runs" / "empty");
+  fs::create_symlink("runs/empty", dir / "to_empty");  // relative, as `ln -s` makes them
+  fs::create_symlink(dir / "to_empty", dir / "to_link");
+  fs::create_symlink("runs/new", dir / "to_nothing");
+  const auto fill = [](const fs::path& staging) { write_file_atomic(staging / "a.txt", "a"); };
+  for (const std::string name : {"to_link/", "to_nothing"}) {
+    const fs::path asked_for = dir / name;
+    check_new_folder(asked_for, "--out");
+    write_folder_atomic(asked_for, fill);
+  }
+  EXPECT_TRUE(fs::is_symlink(dir / "to_empty"));
+  EXPECT_TRUE(fs::is_symlink(dir / "to_link"));
+  EXPECT_TRUE(fs::is_symlink(dir / "to_nothing"));
+  EXPECT_TRUE(fs::is_regular_file(dir / "runs" / "empty" / "a.txt"));
+  EXPECT_TRUE(fs::is_regular_file(dir / "runs" / "new" / "a.txt"));
+  // The folder a link ends at is what must be new, and errors name it.
+  try {
+    check_new_folder(dir / "to_link", "--out");
+    ADD_FAILURE() << "a link to a folder that is not empty was accepted";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "runs" / "empty").string() + ": already exists and is not empty (choose a new --out)");
+  }
+  fs::create_symlink("loop_b", dir / "loop_a");
+  fs::create_symlink("loop_a", dir / "loop_b");
+  EXPECT_THROW(check_new_folder(dir / "loop_a", "--out"), InvalidInput);
+  EXPECT_THROW(write_folder_atomic(dir / "loop_a", fill), InvalidInput);
+  fs::remove_all(dir);
+}
+
 // A link to nothing is a missing frame at open, as loading finds it (info listed it as present).
 TEST_F(SmallCapture, ALinkToNothingIsAMissingFrame) {
   const fs::path file = dir_ / "b" / "depth" / "000001.png";

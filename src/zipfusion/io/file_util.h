@@ -24,7 +24,8 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
 std::filesystem::path folder_path(const std::filesystem::path& dir);
 
 //! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command
-//! line option that chose it), and IoError when its parent folder cannot be created.
+//! line option that chose it), and IoError when its parent folder cannot be created. A link is
+//! followed: what is checked (and written by write_folder_atomic) is the folder it points to.
 void check_new_folder(const std::filesystem::path& dir, std::string_view option);
 
 //! Writes a whole folder atomically: `fill` writes into a hidden staging folder beside `dir`,
