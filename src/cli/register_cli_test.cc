@@ -120,8 +120,8 @@ TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
   const CommandResult r = run("register " + capture + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("cam3  ") , std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("(not joined to the first camera through any overlap: not registered to it)"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("1 camera(s) not joined to the first"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(not joined to the held camera through any overlap: keeps its pose)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("1 camera(s) not joined to cam0"), std::string::npos) << r.out;
   EXPECT_FALSE(read_rig(out).poses_trusted);
   // Two groups, {cam0, cam1} and {cam2, cam3} moved up together: each overlaps within itself, but
   // nothing places the second against the first.
@@ -131,7 +131,7 @@ TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
   write_rig(fs::path(capture) / "rig.json", rig);
   const CommandResult groups = run("register " + capture + " --out " + out);
   ASSERT_EQ(groups.exit_code, 0) << groups.err;
-  EXPECT_NE(groups.out.find("2 camera(s) not joined to the first"), std::string::npos) << groups.out;
+  EXPECT_NE(groups.out.find("2 camera(s) not joined to cam0"), std::string::npos) << groups.out;
   // cam2 and cam3 did match each other: counted per camera, as before, they looked registered.
   const auto matches_of = [&](const std::string& name) {
     std::istringstream lines(groups.out);
@@ -147,7 +147,39 @@ TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
   };
   EXPECT_GT(matches_of("cam2"), 0) << groups.out;
   EXPECT_GT(matches_of("cam3"), 0) << groups.out;
-  EXPECT_FALSE(read_rig(out).poses_trusted);
+  // They may have moved against each other, but nothing places them in the world: they keep
+  // their poses, as the table says.
+  const Rig refined = read_rig(out);
+  EXPECT_FALSE(refined.poses_trusted);
+  for (int c : {2, 3}) EXPECT_TRUE(refined.cameras[c].world_from_depth.isApprox(rig.cameras[c].world_from_depth, 1e-9)) << c;
+}
+
+// A rig of one camera has nothing to register: an error, not a rig that says it is trusted.
+TEST_F(RegisterCli, ARigOfOneCameraIsNotRegistered) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 1 --cameras 1 --resolution 320x240").exit_code, 0);
+  const CommandResult r = run("register " + capture + " --out " + (dir_ / "r.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: " + capture + ": nothing to register: the rig has one camera\n");
+  EXPECT_FALSE(fs::exists(dir_ / "r.json"));
+}
+
+// A camera without depth (dead) cannot hold the others: the first with depth does, and the
+// table says which.
+TEST_F(RegisterCli, ADeadFirstCameraLeavesTheNextOneHeld) {
+  const std::string capture = (dir_ / "cap").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 4 --cameras 4 --resolution 320x240 --miscalibrate 1,0.02 --noise none").exit_code, 0);
+  for (const auto& file : fs::directory_iterator(fs::path(capture) / "cam0" / "depth")) fs::remove(file.path());
+  const std::string out = (dir_ / "r.json").string();
+  const CommandResult r = run("register " + capture + " --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("(no depth in these frames: keeps its pose)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(held: the others are registered to it)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("against ground_truth/rig.json (pose relative to cam1):"), std::string::npos) << r.out;
+  const Capture cap = Capture::open(capture);
+  const std::vector<RelativePoseError> errors =
+      relative_pose_errors(world_from_depth_poses(read_rig(out)), world_from_depth_poses(*cap.ground_truth_rig()), 1);
+  for (int c : {2, 3}) EXPECT_LT(errors[c].translation_m * 1000, 5.0) << c << "\n" << r.out;
 }
 
 TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {

@@ -1,5 +1,6 @@
 // zipfusion register: refine a capture's camera poses by GPA-ICP and write the refined rig.json.
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -42,6 +43,7 @@ void run_register(RegisterArgs& args) {
   args.options.validate();
   const Capture capture = Capture::open(args.capture);
   const Rig start = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
   const std::vector<int> frames = spread_frames(range, args.max_frames);
 
@@ -57,19 +59,25 @@ void run_register(RegisterArgs& args) {
   const RegistrationResult result = register_rig(start, depth, args.options);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
-  // A camera that overlaps none keeps its starting pose. When that is every camera nothing was
-  // registered (poses too far off for the depth to meet, or no depth): an error, not a rig that
-  // says its poses are trusted. When it is some, the rig is written but not marked trusted, so that
-  // reconstruct's --register auto refines it again.
+  // A camera not joined to the gauge (the first with depth) keeps its starting pose. When that is
+  // every other camera nothing was registered (poses too far off for the depth to meet, or no
+  // depth): an error, not a rig that says its poses are trusted. When it is some, the rig is
+  // written but not marked trusted, so that reconstruct's --register auto refines it again.
+  const std::string& gauge = start.cameras[result.gauge].name;
   int unmatched = 0;
-  for (size_t c = 1; c < start.cameras.size(); ++c) unmatched += !result.joined_to_first[c];
-  if (start.cameras.size() > 1 && unmatched == static_cast<int>(start.cameras.size()) - 1) {
+  for (size_t c = 0; c < start.cameras.size(); ++c) unmatched += !result.joined_to_gauge[c];
+  if (unmatched == static_cast<int>(start.cameras.size()) - 1) {
     char reach[64];
     std::snprintf(reach, sizeof reach, "%.0f mm at the finest level, %d correspondences a pair", args.options.end_distance_m * 1000,
                   args.options.min_correspondences);
-    throw InvalidInput(args.capture + ": no camera's depth joins " + start.cameras[0].name + "'s within the registration's reach (" + reach +
+    throw InvalidInput(args.capture + ": no camera's depth joins " + gauge + "'s within the registration's reach (" + reach +
                        "): the starting poses are too far off, the depth too small for --coarsest-level " + std::to_string(args.options.coarsest_level) +
                        ", or the frames have no overlapping depth; nothing written");
+  }
+  std::vector<std::string> without_depth;
+  for (size_t c = 0; c < start.cameras.size(); ++c) {
+    const bool seen = std::any_of(depth.begin(), depth.end(), [c](const std::vector<Image<float>>& frame) { return !frame[c].empty(); });
+    if (!seen) without_depth.push_back(start.cameras[c].name);
   }
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
@@ -79,23 +87,35 @@ void run_register(RegisterArgs& args) {
   std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),
               frames.back(), ms, result.iterations, result.converged ? ", converged" : "");
   std::printf("%-10s %12s %12s %14s %14s %10s\n", "camera", "change deg", "change mm", "rms before mm", "rms after mm", "matches");
+  // "-": no correspondences to measure at those poses.
+  const auto rms_mm = [](double rms_m, int count) {
+    char text[32];
+    std::snprintf(text, sizeof text, count > 0 ? "%.2f" : "-", rms_m * 1000);
+    return std::string(text);
+  };
   for (size_t c = 0; c < start.cameras.size(); ++c) {
     const Rigid3d change = start.cameras[c].world_from_depth.inverse() * result.world_from_depth[c];
     const double moved_mm = (result.world_from_depth[c].translation() - start.cameras[c].world_from_depth.translation()).norm() * 1000;
-    std::printf("%-10s %12.3f %12.1f %14.2f %14.2f %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
-                result.rmse_before_m[c] * 1000, result.rmse_after_m[c] * 1000, result.correspondences_after[c],
-                c > 0 && !result.joined_to_first[c] ? "  (not joined to the first camera through any overlap: not registered to it)" : "");
+    const bool has_depth = std::find(without_depth.begin(), without_depth.end(), start.cameras[c].name) == without_depth.end();
+    const char* note = static_cast<int>(c) == result.gauge ? "  (held: the others are registered to it)"
+                       : !has_depth                        ? "  (no depth in these frames: keeps its pose)"
+                       : !result.joined_to_gauge[c]        ? "  (not joined to the held camera through any overlap: keeps its pose)"
+                                                           : "";
+    std::printf("%-10s %12.3f %12.1f %14s %14s %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
+                rms_mm(result.rmse_before_m[c], result.correspondences_before[c]).c_str(),
+                rms_mm(result.rmse_after_m[c], result.correspondences_after[c]).c_str(), result.correspondences_after[c], note);
   }
   if (unmatched > 0) {
-    std::printf("%d camera(s) not joined to the first: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched,
+    std::printf("%d camera(s) not joined to %s: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched, gauge.c_str(),
                 args.out.c_str());
   }
   if (const auto& truth = capture.ground_truth_rig()) {
     const std::vector<Rigid3d> true_poses = world_from_depth_poses(*truth);
-    const auto before = relative_pose_errors(world_from_depth_poses(start), true_poses);
-    const auto after = relative_pose_errors(result.world_from_depth, true_poses);
-    std::printf("against ground_truth/rig.json (pose relative to %s):\n", start.cameras[0].name.c_str());
-    for (size_t c = 1; c < before.size(); ++c) {
+    const auto before = relative_pose_errors(world_from_depth_poses(start), true_poses, result.gauge);
+    const auto after = relative_pose_errors(result.world_from_depth, true_poses, result.gauge);
+    std::printf("against ground_truth/rig.json (pose relative to %s):\n", gauge.c_str());
+    for (size_t c = 0; c < before.size(); ++c) {
+      if (static_cast<int>(c) == result.gauge) continue;
       std::printf("%-10s before %6.1f mm %6.3f deg   after %6.1f mm %6.3f deg\n", start.cameras[c].name.c_str(), before[c].translation_m * 1000,
                   before[c].rotation_deg, after[c].translation_m * 1000, after[c].rotation_deg);
     }

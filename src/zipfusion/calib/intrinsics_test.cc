@@ -54,6 +54,23 @@ TEST(Intrinsics, RecoversTheTrueIntrinsicsWithinHalfAPercent) {
   }
 }
 
+// The views' distances follow the board's size: a board of 10 cm squares (which a fixed 0.45–0.85
+// m never fitted into the image, so that drawing views went on for ever) is seen whole in every
+// view, and found.
+TEST(Intrinsics, ABoardOfLargeSquaresIsRenderedWholeAndFound) {
+  const CheckerboardOptions options{.views = 3, .square_m = 0.1};
+  const BoardOptions board{.square_m = 0.1};
+  const Detected d = detect(render_checkerboard_views(options), board);
+  for (size_t v = 0; v < d.corners.size(); ++v) EXPECT_TRUE(d.corners[v].has_value()) << v;
+  // Distances given by hand where the board cannot fit: an error naming them, not an endless draw.
+  try {
+    render_checkerboard_views({.views = 1, .square_m = 0.1, .min_distance_m = 0.2, .max_distance_m = 0.2});
+    ADD_FAILURE() << "a board that cannot fit the image was rendered";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("distance: the board (10x7 squares of 0.1 m) is not inside the image", 0), 0u) << e.what();
+  }
+}
+
 TEST(Intrinsics, RejectsAndNamesAViewFarWorseThanTheRest) {
   const CheckerboardOptions options{.views = 10, .seed = 3};
   const BoardOptions board;

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/synth/synth.h"
 
 namespace zipfusion {
 namespace {
@@ -45,6 +46,37 @@ TEST(BackgroundRegistration, RefinesSamba4camWhileFramesArrive) {
   for (const RelativePoseError& e : relative_pose_errors(poses->world_from_depth, world_from_depth_poses(truth))) {
     EXPECT_LT(e.translation_m * 1000, 2.0);
     EXPECT_LT(e.rotation_deg, 0.1);
+  }
+}
+
+// Poses so far off that the first frame's depth meets nowhere within the registration's end
+// distance (no correspondences before): the refinement that makes it meet is published. Camera 0
+// has no depth, so the others are registered to camera 1.
+TEST(BackgroundRegistration, PublishesPosesWhereTheDepthMetNowhereBefore) {
+  SynthOptions synth{.frames = 1, .cameras = 4, .miscalibrate_deg = 1, .miscalibrate_m = 0.02, .seed = 1};
+  Rig truth = make_ring_rig(synth);
+  const TriangleMesh subject = subject_mesh(synth, 0);
+  truth.volume = synthetic_capture_volume(subject);
+  const Rig start = miscalibrate(truth, synth);
+  FrameSet set;
+  set.cameras.resize(truth.cameras.size());
+  for (int c = 1; c < static_cast<int>(truth.cameras.size()); ++c) {
+    set.cameras[c].depth = render_view(subject, truth, c, 0, synth).depth;
+    set.cameras[c].has_depth = true;
+  }
+  BackgroundRegistration registration(start, {.every_frames = 1, .window_frames = 1});
+  registration.offer(set);
+  registration.wait_idle();
+  const auto poses = registration.latest_poses();
+  ASSERT_EQ(poses->version, 1);
+  EXPECT_EQ(poses->result.gauge, 1);
+  EXPECT_EQ(poses->result.correspondences_before, (std::vector<int>{0, 0, 0, 0}));
+  const std::vector<RelativePoseError> before = relative_pose_errors(world_from_depth_poses(start), world_from_depth_poses(truth), 1);
+  const std::vector<RelativePoseError> after = relative_pose_errors(poses->world_from_depth, world_from_depth_poses(truth), 1);
+  for (int c = 2; c < 4; ++c) {
+    std::printf("cam%d: %.1f mm / %.3f deg before, %.1f mm / %.3f deg after\n", c, before[c].translation_m * 1000, before[c].rotation_deg,
+                after[c].translation_m * 1000, after[c].rotation_deg);
+    EXPECT_LT(after[c].translation_m, before[c].translation_m) << c;
   }
 }
 

@@ -397,7 +397,25 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   // Residuals before, at the input poses: measured on the finest level with the end distance.
   Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
   const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
-  for (int c = 0; c < cameras; ++c) result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
+  for (int c = 0; c < cameras; ++c) {
+    result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
+    result.correspondences_before.push_back(before.count[c]);
+  }
+  // The gauge, whose pose is held: the first camera with depth (a camera without any cannot hold
+  // the others in place).
+  for (int c = 0; c < cameras; ++c) {
+    const bool seen = std::any_of(depth_m.begin(), depth_m.end(), [c](const std::vector<Image<float>>& frame) { return !frame[c].empty(); });
+    if (seen) {
+      result.gauge = c;
+      break;
+    }
+  }
+  std::vector<int> free_cameras, free_rows;  // the others, and their rows in the normal equations
+  for (int c = 0; c < cameras; ++c) {
+    if (c == result.gauge) continue;
+    free_cameras.push_back(c);
+    for (int k = 0; k < 6; ++k) free_rows.push_back(6 * c + k);
+  }
 
   int schedule_step = 0;
   for (int level = options.coarsest_level; level >= options.finest_level; --level) {
@@ -409,18 +427,18 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
       Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);
       accumulate(clouds, poses, distance, weighting, options, &h, &g, true);
-      // Camera 0 is the gauge: solve for the others only. A tiny damping keeps cameras without
-      // correspondences (or a degenerate overlap) where they are.
-      const int n = 6 * (cameras - 1);
-      if (n == 0) break;
-      Eigen::MatrixXd hf = h.bottomRightCorner(n, n);
+      // Solved for all but the gauge. A tiny damping keeps cameras without correspondences (or a
+      // degenerate overlap) where they are.
+      if (free_cameras.empty()) break;
+      Eigen::MatrixXd hf = h(free_rows, free_rows);
       const double damping = 1e-9 * std::max(1.0, hf.diagonal().maxCoeff());
       hf.diagonal().array() += damping;
-      const Eigen::VectorXd x = hf.ldlt().solve(-g.tail(n));
+      const Eigen::VectorXd x = hf.ldlt().solve(-g(free_rows));
       ++result.iterations;
       double largest = 0;
-      for (int c = 1; c < cameras; ++c) {
-        Vector6d step = x.segment<6>(6 * (c - 1));
+      for (size_t k = 0; k < free_cameras.size(); ++k) {
+        const int c = free_cameras[k];
+        Vector6d step = x.segment<6>(6 * static_cast<Eigen::Index>(k));
         // A step much longer than the correspondence distance trusts the linearisation beyond the
         // correspondences that made it (a nearly degenerate overlap); shorten it.
         const double length = std::max(step.tail<3>().norm(), step.head<3>().norm() * kLeverArmM);
@@ -441,33 +459,44 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       }
     }
   }
-  const Accumulated after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
-  for (int c = 0; c < cameras; ++c) {
-    result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
-    result.correspondences_after.push_back(after.count[c]);
-  }
-  // Cameras reached from camera 0 through matched pairs.
-  result.joined_to_first.assign(cameras, 0);
-  result.joined_to_first[0] = 1;
+  Accumulated after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
+  // Cameras reached from the gauge through matched pairs.
+  result.joined_to_gauge.assign(cameras, 0);
+  result.joined_to_gauge[result.gauge] = 1;
   for (bool grew = true; grew;) {
     grew = false;
     for (int a = 0; a < cameras; ++a) {
       for (int b = a + 1; b < cameras; ++b) {
-        if (after.pair_matched[static_cast<size_t>(a) * cameras + b] && result.joined_to_first[a] != result.joined_to_first[b]) {
-          result.joined_to_first[a] = result.joined_to_first[b] = 1;
+        if (after.pair_matched[static_cast<size_t>(a) * cameras + b] && result.joined_to_gauge[a] != result.joined_to_gauge[b]) {
+          result.joined_to_gauge[a] = result.joined_to_gauge[b] = 1;
           grew = true;
         }
       }
     }
   }
+  // A camera the gauge does not reach may have moved with others it overlaps, but nothing places
+  // that group in the world: its cameras keep their starting poses.
+  const Poses start{world_from_depth_poses(rig)};
+  bool restored = false;
+  for (int c = 0; c < cameras; ++c) {
+    if (result.joined_to_gauge[c]) continue;
+    restored = restored || !poses.world_from_depth[c].isApprox(start.world_from_depth[c], 0);
+    poses.world_from_depth[c] = start.world_from_depth[c];
+  }
+  if (restored) after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
+  for (int c = 0; c < cameras; ++c) {
+    result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
+    result.correspondences_after.push_back(after.count[c]);
+  }
   result.world_from_depth = poses.world_from_depth;
   return result;
 }
 
-std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth) {
-  assert(world_from_depth.size() == true_world_from_depth.size() && !world_from_depth.empty());
+std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth,
+                                                    int reference) {
+  assert(world_from_depth.size() == true_world_from_depth.size() && reference >= 0 && reference < static_cast<int>(world_from_depth.size()));
   std::vector<RelativePoseError> errors;
-  const Rigid3d first_from_world = world_from_depth[0].inverse(), true_first_from_world = true_world_from_depth[0].inverse();
+  const Rigid3d first_from_world = world_from_depth[reference].inverse(), true_first_from_world = true_world_from_depth[reference].inverse();
   for (size_t c = 0; c < world_from_depth.size(); ++c) {
     const Rigid3d first_from_cam = first_from_world * world_from_depth[c];
     const Rigid3d true_first_from_cam = true_first_from_world * true_world_from_depth[c];

@@ -3,7 +3,7 @@
 //! Global registration of all cameras at once (paper Section III-A): GPA-ICP. Correspondences are
 //! mutual closest points (nanoflann k-d trees) between every two cameras' clouds of the same
 //! frame, within a distance that shrinks over the iterations; one joint solve then moves every
-//! camera (camera 0 fixed as the gauge) so that corresponding points meet. Generalised Procrustes
+//! camera (the first camera with depth fixed as the gauge) so that corresponding points meet. Generalised Procrustes
 //! Analysis minimises each correspondence tuple's squared distances to its centroid, which for
 //! pairs is half their squared distance; here that objective is measured along the surface normal
 //! (symmetric point-to-plane: the two points' mean normal) and solved jointly by one Gauss-Newton
@@ -67,14 +67,17 @@ struct RegistrationOptions {
 };
 
 struct RegistrationResult {
-  std::vector<Rigid3d> world_from_depth;   // refined poses; camera 0's unchanged
-  std::vector<double> rmse_before_m;       // per camera: point-to-plane RMS of its correspondences at the input poses
+  int gauge = 0;                           // the camera whose pose is held: the first with depth in any frame
+  std::vector<Rigid3d> world_from_depth;   // refined poses; the gauge's unchanged
+  std::vector<double> rmse_before_m;       // per camera: point-to-plane RMS of its correspondences at the input poses (0 where none)
+  std::vector<int> correspondences_before; // per camera, at the input poses
   std::vector<double> rmse_after_m;        // the same at the refined poses (finest level, end distance)
   std::vector<int> correspondences_after;  // per camera, at the refined poses
-  // Per camera: tied to camera 0 through pairs that share correspondences at the refined poses
+  // Per camera: tied to the gauge through pairs that share correspondences at the refined poses
   // (directly or through other cameras). A camera that is not was registered to nothing that
-  // places it against camera 0: two groups that overlap only among themselves are not one rig.
-  std::vector<char> joined_to_first;
+  // places it against the gauge (two groups that overlap only among themselves are not one rig):
+  // it keeps its starting pose.
+  std::vector<char> joined_to_gauge;
   int iterations = 0;                      // Gauss-Newton steps taken over all levels
   bool converged = false;                  // the finest level's last step moved less than converged_rad
 };
@@ -85,16 +88,17 @@ std::vector<Image<float>> registration_depth(const Rig& rig, const FrameSet& fra
 
 //! Refines the poses of all cameras from depth_m[frame][camera] (metres, 0 = none; empty image =
 //! camera absent from that frame) starting at `rig`'s poses. Precondition: every frame has
-//! rig.cameras.size() images; options valid. Cameras that overlap no other keep their pose.
+//! rig.cameras.size() images; options valid. Cameras not joined to the gauge keep their pose.
 RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Image<float>>>& depth_m, const RegistrationOptions& options);
 
-//! Error of one camera's pose relative to camera 0, against the truth: the camera's centre and
-//! rotation as seen from camera 0.
+//! Error of one camera's pose relative to camera `reference`, against the truth: the camera's
+//! centre and rotation as seen from the reference camera.
 struct RelativePoseError {
   double translation_m = 0;
   double rotation_deg = 0;
 };
-std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth);
+std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth,
+                                                    int reference = 0);
 
 //! The largest translation and the largest rotation error of relative_pose_errors (each over all
 //! cameras, so possibly of different cameras).

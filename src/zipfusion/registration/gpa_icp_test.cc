@@ -167,6 +167,28 @@ TEST(RegisterRig, SixNoiseFreeCamerasConvergeFromTwoDegreesFiveCentimetres) {
   EXPECT_LT(after.deg, 0.1);
 }
 
+// A camera with no depth cannot hold the others: the first camera with depth is the gauge, the
+// others are registered to it, and the one without depth keeps its pose.
+TEST(RegisterRig, WithoutCameraZerosDepthTheFirstCameraWithDepthIsHeld) {
+  const RegistrationOptions options;
+  SyntheticRing ring = make_ring(6, 4, 2.0, 0.05, false, options);
+  for (auto& frame : ring.depth) frame[0] = Image<float>();
+  const RegistrationResult result = register_rig(ring.start, ring.depth, options);
+  EXPECT_EQ(result.gauge, 1);
+  EXPECT_TRUE(result.world_from_depth[0].isApprox(ring.start.cameras[0].world_from_depth));
+  EXPECT_TRUE(result.world_from_depth[1].isApprox(ring.start.cameras[1].world_from_depth));
+  EXPECT_EQ(result.correspondences_before[0], 0);
+  EXPECT_EQ(result.joined_to_gauge, (std::vector<char>{0, 1, 1, 1, 1, 1}));
+  const std::vector<Rigid3d> truth = world_from_depth_poses(ring.truth);
+  const std::vector<RelativePoseError> before = relative_pose_errors(world_from_depth_poses(ring.start), truth, 1);
+  const std::vector<RelativePoseError> after = relative_pose_errors(result.world_from_depth, truth, 1);
+  for (size_t c = 2; c < after.size(); ++c) {
+    EXPECT_GT(before[c].translation_m * 1000, 10) << c;
+    EXPECT_LT(after[c].translation_m * 1000, 2.0) << c;
+    EXPECT_LT(after[c].rotation_deg, 0.1) << c;
+  }
+}
+
 // Pairwise ICP chained around the ring (camera k against camera k−1, already placed), the way
 // errors accumulate without a global solve.
 std::vector<Rigid3d> chained_pairwise(const SyntheticRing& ring, const std::vector<std::vector<Image<float>>>& depth,

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <system_error>
 
 #include "zipfusion/core/error.h"
@@ -208,7 +209,8 @@ void CheckerboardOptions::validate() const {
   if (inner_columns < 2 || inner_rows < 2) fail("board", "needs at least 2x2 inner corners");
   if (!(square_m > 0.001 && square_m < 1)) fail("square", "must be in (0.001, 1) metres");
   if (intrinsics.width < 64 || intrinsics.height < 48 || !(intrinsics.fx > 0 && intrinsics.fy > 0)) fail("intrinsics", "need a positive size and focal lengths");
-  if (!(min_distance_m > 0.05 && max_distance_m >= min_distance_m)) fail("distance", "need 0.05 < min <= max metres");
+  const bool automatic = min_distance_m == 0 && max_distance_m == 0;
+  if (!automatic && !(min_distance_m > 0.05 && max_distance_m >= min_distance_m)) fail("distance", "need 0.05 < min <= max metres, or both 0");
   if (!(max_tilt_deg >= 0 && max_tilt_deg < 80)) fail("max-tilt", "must be in [0, 80) degrees");
   if (supersampling < 1 || supersampling > 8) fail("supersampling", "must be in [1, 8]");
 }
@@ -228,13 +230,30 @@ std::vector<CheckerboardView> render_checkerboard_views(const CheckerboardOption
     return (ix + iy) % 2 == 0 ? 25.0f : 225.0f;
   };
 
+  // Automatic distances: the board with its margin fills 55 % (nearest) to 29 % (farthest) of
+  // the image along its fuller axis, whatever the board's size.
+  double min_distance = o.min_distance_m, max_distance = o.max_distance_m;
+  if (min_distance == 0 && max_distance == 0) {
+    const double filled_at_1m = std::max(s * (o.inner_columns + 3) * k.fx / k.width, s * (o.inner_rows + 3) * k.fy / k.height);
+    min_distance = std::max(0.06, filled_at_1m / 0.55);
+    max_distance = min_distance * (0.85 / 0.45);
+  }
+  // A view is drawn until its board lies inside the image; with distances given, it may never.
+  const long most_draws = 1000L * o.views;
+  long draws = 0;
   std::vector<CheckerboardView> views;
   while (static_cast<int>(views.size()) < o.views) {
+    if (++draws > most_draws) {
+      std::ostringstream what;
+      what << "distance: the board (" << o.inner_columns + 1 << "x" << o.inner_rows + 1 << " squares of " << s << " m) is not inside the image in any of "
+           << most_draws << " random views between " << min_distance << " and " << max_distance << " m";
+      throw InvalidInput(what.str());
+    }
     const double tilt = o.max_tilt_deg * kPi / 180;
     const Eigen::Matrix3d rotation = (Eigen::AngleAxisd((unit(rng) - 0.5) * 0.6, Eigen::Vector3d::UnitZ()) *
                                       Eigen::AngleAxisd((2 * unit(rng) - 1) * tilt, Eigen::Vector3d::UnitY()) *
                                       Eigen::AngleAxisd((2 * unit(rng) - 1) * tilt, Eigen::Vector3d::UnitX())).toRotationMatrix();
-    const double z = o.min_distance_m + unit(rng) * (o.max_distance_m - o.min_distance_m);
+    const double z = min_distance + unit(rng) * (max_distance - min_distance);
     const Eigen::Vector3d centre_in_cam((unit(rng) - 0.5) * 0.5 * z * k.width / k.fx, (unit(rng) - 0.5) * 0.5 * z * k.height / k.fy, z);
     Rigid3d cam_from_board = Rigid3d::Identity();
     cam_from_board.linear() = rotation;

@@ -60,8 +60,10 @@ struct CheckerboardOptions {
   int inner_rows = 6;             // inner corners along the board's y
   double square_m = 0.025;        // square side, metres
   Intrinsics intrinsics{.width = 640, .height = 480, .fx = 530, .fy = 526, .cx = 322.5, .cy = 236.0};  // the truth
-  double min_distance_m = 0.45;   // board centre distance from the camera, metres
-  double max_distance_m = 0.85;
+  // Board centre's distance from the camera, metres; 0 (both): from the board's size, so that it
+  // fills 55 % down to 29 % of the image (0.45–0.85 m for the default board and camera).
+  double min_distance_m = 0;
+  double max_distance_m = 0;
   double max_tilt_deg = 35;       // board tilt about its x and y axes, degrees
   double color_noise_sigma = 2.0; // 8-bit levels
   int supersampling = 3;          // samples per pixel and axis (anti-aliasing: sub-pixel corners)
