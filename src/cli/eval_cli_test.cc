@@ -44,8 +44,14 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   const CommandResult json_run = run("eval " + capture.string() + " " + recon.string() + " --json --threads 2");
   ASSERT_EQ(json_run.exit_code, 0) << json_run.err;
   const nlohmann::json j = nlohmann::json::parse(json_run.out);
-  ASSERT_EQ(j["frames"].size(), 2u);
+  ASSERT_EQ(j["frames"].size(), 3u);
   EXPECT_EQ(j["missing_frames"], nlohmann::json::array({2}));
+  // The missing frame is scored as an empty mesh: leaving a frame out cannot raise the mean.
+  const auto& missing = j["frames"][2];
+  EXPECT_TRUE(missing["file"].is_null());
+  EXPECT_EQ(missing["triangles"], 0);
+  EXPECT_DOUBLE_EQ(missing["completeness"].get<double>(), 0.0);
+  EXPECT_TRUE(missing["accuracy_mean_mm"].is_null());
   const auto& exact = j["frames"][0];
   EXPECT_EQ(exact["frame"], 0);
   EXPECT_LT(exact["accuracy_mean_mm"].get<double>(), 0.01);
@@ -58,17 +64,19 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   const auto& shifted = j["frames"][1];
   EXPECT_EQ(shifted["file"], "000001.obj");
   EXPECT_EQ(shifted["doubled_triangles"], 2);
-  EXPECT_DOUBLE_EQ(j["mean"]["doubled_triangles"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(j["mean"]["doubled_triangles"].get<double>(), 2.0 / 3);
   EXPECT_GT(shifted["accuracy_mean_mm"].get<double>(), 1.0);  // 5 mm up: 0 on vertical surfaces, 5 on horizontal ones
   EXPECT_GT(shifted["accuracy_p95_mm"].get<double>(), 4.0);
   EXPECT_LT(shifted["accuracy_mean_mm"].get<double>(), 5.0);
   EXPECT_GT(shifted["completeness"].get<double>(), 0.99);
   EXPECT_NEAR(j["mean"]["accuracy_mean_mm"].get<double>(), shifted["accuracy_mean_mm"].get<double>() / 2, 0.01);
   EXPECT_NEAR(j["mean"]["color_error"].get<double>(), (10 + shifted["color_error"].get<double>()) / 2, 0.01);
+  EXPECT_NEAR(j["mean"]["completeness"].get<double>(), (1 + shifted["completeness"].get<double>() + 0) / 3, 1e-9);
 
   const CommandResult table = run("eval " + capture.string() + " " + recon.string() + " --frames 1:3");
   ASSERT_EQ(table.exit_code, 0) << table.err;
-  for (const char* expected : {"reconstructions  " , ": 1 of 2 frames", "     1 ", "  mean ", "missing reconstructions: 1 frame (2)"}) {
+  for (const char* expected : {"reconstructions  ", ": 1 of 2 frames (a missing one is scored as an empty mesh)", "     1 ", "     2   missing ",
+                               "  mean ", "missing reconstructions: 1 frame (2)"}) {
     EXPECT_NE(table.out.find(expected), std::string::npos) << expected << "\n" << table.out;
   }
   EXPECT_EQ(table.out.find("\n     0 "), std::string::npos) << table.out;

@@ -114,21 +114,24 @@ void run_eval(EvalArgs& args) {
   if (!fs::is_directory(args.recon_dir, ec)) throw InvalidInput(args.recon_dir + ": not a folder of reconstructions");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
 
+  // A frame without a reconstruction is scored as an empty mesh (nothing complete, no accuracy),
+  // so that leaving frames out cannot raise the mean.
   std::vector<int> frames, missing;
-  std::vector<fs::path> paths;
+  std::vector<fs::path> paths;  // per frame; empty where missing
   for (int frame = range.begin; frame < range.end; ++frame) {
     const fs::path path = reconstruction_path(args.recon_dir, frame);
-    (path.empty() ? missing : frames).push_back(frame);
-    if (!path.empty()) paths.push_back(path);
+    if (path.empty()) missing.push_back(frame);
+    frames.push_back(frame);
+    paths.push_back(path);
   }
-  if (frames.empty()) {
+  if (missing.size() == frames.size()) {
     throw InvalidInput(args.recon_dir + ": no reconstruction: expected " + frame_file_name(range.begin, ".ply") + " (or .obj) to " +
                        frame_file_name(range.end - 1, ".ply"));
   }
 
   std::vector<FrameQuality> results;
   for (size_t i = 0; i < frames.size(); ++i) {
-    const TriangleMesh reconstruction = read_mesh(paths[i]);
+    const TriangleMesh reconstruction = paths[i].empty() ? TriangleMesh{} : read_mesh(paths[i]);
     const TriangleMesh truth = read_mesh(capture.ground_truth_mesh_path(frames[i]));
     results.push_back(evaluate_frame(reconstruction, truth, true_rig, volume, options));
     show_progress("eval", static_cast<int>(i + 1), static_cast<int>(frames.size()));
@@ -150,7 +153,7 @@ void run_eval(EvalArgs& args) {
     for (size_t i = 0; i < frames.size(); ++i) {
       const FrameQuality& q = results[i];
       out["frames"].push_back({{"frame", frames[i]},
-                               {"file", paths[i].filename().string()},
+                               {"file", paths[i].empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(paths[i].filename().string())},
                                {"triangles", q.triangles},
                                {"vertices", q.vertices},
                                {"accuracy_mean_mm", number(q.accuracy_mean_mm)},
@@ -189,7 +192,8 @@ void run_eval(EvalArgs& args) {
 
   std::cout << "capture          " << args.capture << " (" << true_rig.cameras.size() << " true cameras"
             << (volume ? ", inside the capture volume" : "") << ")\n";
-  std::cout << "reconstructions  " << args.recon_dir << ": " << frames.size() << " of " << range.end - range.begin << " frames\n";
+  std::cout << "reconstructions  " << args.recon_dir << ": " << frames.size() - missing.size() << " of " << frames.size() << " frames"
+            << (missing.empty() ? "" : " (a missing one is scored as an empty mesh)") << "\n";
   std::cout << format("observed         true surface seen by a camera within %.2f-%.2f m (depth tolerance %g mm); covered within %g mm\n",
                       options.min_range_m, options.max_range_m, args.visibility_mm, args.completeness_mm);
   std::cout << format("\n%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "", "", "accuracy", "(mm)", "complete", "area", "components", "non-man.",
@@ -198,7 +202,7 @@ void run_eval(EvalArgs& args) {
                       "triangles", "error");
   for (size_t i = 0; i < frames.size(); ++i) {
     const FrameQuality& q = results[i];
-    std::cout << format("%6d %9d %9s %9s %9s %6s %12s %9d %7d %9d %7s\n", frames[i], q.triangles, cell("%.2f", q.accuracy_mean_mm).c_str(),
+    std::cout << format("%6d %9s %9s %9s %9s %6s %12s %9d %7d %9d %7s\n", frames[i], paths[i].empty() ? "missing" : std::to_string(q.triangles).c_str(), cell("%.2f", q.accuracy_mean_mm).c_str(),
                         cell("%.2f", q.accuracy_p95_mm).c_str(), cell("%.1f", 100 * q.completeness).c_str(), cell("%.2f", q.area_ratio).c_str(),
                         format("%d (%d)", q.components, q.large_components).c_str(), q.non_manifold_edges, q.folded_edges,
                         q.doubled_triangles, cell("%.1f", q.color_error).c_str());
