@@ -131,9 +131,21 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
     EXPECT_GE(f["zipper"]["pairs"].get<int>(), 4);
     // Seam faces left out at creases (one-triangle gaps) are a small share of the seams' faces.
     EXPECT_LE(f["zipper"]["seam_crease_gaps"].get<int>(), f["zipper"]["seam_added"].get<int>() / 100);
-    const TriangleMesh mesh = read_mesh(fs::path(zipper) / frame_file_name(f["frame"].get<int>(), ".ply"));
+    TriangleMesh mesh = read_mesh(fs::path(zipper) / frame_file_name(f["frame"].get<int>(), ".ply"));
     EXPECT_EQ(f["triangles"].get<size_t>(), mesh.triangle_count());
+    EXPECT_EQ(f["vertices"].get<size_t>(), mesh.vertex_count());
+    std::vector<int> remap;
+    EXPECT_EQ(remove_unreferenced_vertices(mesh, remap), 0) << "every vertex written is a triangle's";
   }
+  // A frame set without any camera is an empty mesh, with the colour properties of the others.
+  for (const auto& file : fs::directory_iterator(fs::path(capture))) {
+    if (fs::is_directory(file.path() / "depth")) fs::remove(file.path() / "depth" / "000001.png");
+  }
+  const std::string holes = (dir_ / "holes").string();
+  ASSERT_EQ(run("reconstruct " + capture + " --out " + holes).exit_code, 0);
+  const std::vector<std::uint8_t> empty_file = read_file_bytes(fs::path(holes) / "000001.ply");
+  EXPECT_NE(std::string(empty_file.begin(), empty_file.end()).find("element vertex 0\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red"),
+            std::string::npos);
   const CommandResult bad = run("reconstruct " + capture + " --out " + zipper + " --frames 2:9");
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--frames: \"2:9\" reaches past the last frame of a capture with 3 frames"), std::string::npos) << bad.err;

@@ -90,10 +90,13 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   PipelineOptions pipeline_options = reconstruction.pipeline_options();
   if (in.live) pipeline_options.source_policy = QueuePolicy::kDropOldest;  // the cameras do not wait
   // Decoding, reconstruction and writing overlap: each runs on its own thread.
+  std::vector<int> remap;  // remove_unreferenced_vertices' scratch
   const PipelineStats pipeline = run_pipeline(in.source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
     const FrameResult& result = frame.result;
     const Clock::time_point write_start = Clock::now();
-    write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh);
+    remove_unreferenced_vertices(frame.result.mesh, remap);
+    // Every frame's file has colours, an empty one (no camera in its frame set) too.
+    write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
     const double write_ms = ms_since(write_start);
     const StageTimes& t = result.times;
     totals.push_back(t.total_ms);

@@ -14,4 +14,25 @@ void TriangleMesh::append(const TriangleMesh& other) {
   for (const Eigen::Vector3i& t : other.triangles) triangles.push_back(t.array() + offset);
 }
 
+int remove_unreferenced_vertices(TriangleMesh& mesh, std::vector<int>& remap) {
+  const int count = static_cast<int>(mesh.positions.size());
+  remap.assign(count, -1);
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) remap[t[k]] = 0;
+  }
+  int kept = 0;
+  for (int v = 0; v < count; ++v) {
+    if (remap[v] < 0) continue;
+    remap[v] = kept;
+    mesh.positions[kept] = mesh.positions[v];
+    if (mesh.has_colors()) mesh.colors[kept] = mesh.colors[v];
+    ++kept;
+  }
+  if (kept == count) return 0;
+  for (Eigen::Vector3i& t : mesh.triangles) t = Eigen::Vector3i(remap[t[0]], remap[t[1]], remap[t[2]]);
+  mesh.positions.resize(kept);
+  if (mesh.has_colors()) mesh.colors.resize(kept);
+  return count - kept;
+}
+
 }  // namespace zipfusion

@@ -22,4 +22,9 @@ struct TriangleMesh {
   void append(const TriangleMesh& other);
 };
 
+//! Drops the vertices no triangle uses, keeping the others' order, and renumbers the triangles;
+//! returns how many went. `remap` is scratch (kept by the caller: no allocation once it has grown).
+//! Zippering leaves a few such vertices: seam points whose triangles were all dropped.
+int remove_unreferenced_vertices(TriangleMesh& mesh, std::vector<int>& remap);
+
 }  // namespace zipfusion

@@ -596,9 +596,9 @@ TriangleMesh read_ply(const std::filesystem::path& path) {
   return parse_ply(read_file_bytes(path), path.string());
 }
 
-std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh) {
+std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh, const MeshLayout& layout) {
   check_mesh(mesh);
-  const bool colors = mesh.has_colors();
+  const bool colors = mesh.has_colors() || (layout.colors_when_empty && mesh.positions.empty());
   std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex " +
                        std::to_string(mesh.positions.size()) +
                        "\nproperty float x\nproperty float y\nproperty float z\n";
@@ -628,8 +628,8 @@ std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh) {
   return bytes;
 }
 
-void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
-  write_file_atomic(path, encode_ply(mesh));
+void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, const MeshLayout& layout) {
+  write_file_atomic(path, encode_ply(mesh, layout));
 }
 
 TriangleMesh parse_obj(std::string_view text, const std::string& source) {
@@ -742,9 +742,9 @@ TriangleMesh read_mesh(const std::filesystem::path& path) {
                           " (expected .ply or .obj)");
 }
 
-void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh) {
+void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, const MeshLayout& layout) {
   const std::string extension = to_lower(path.extension().string());
-  if (extension == ".ply") return write_ply(path, mesh);
+  if (extension == ".ply") return write_ply(path, mesh, layout);
   if (extension == ".obj") return write_obj(path, mesh);
   fail(path.string(), "unsupported mesh file extension " + quote_token(path.extension().string()) +
                           " (expected .ply or .obj)");

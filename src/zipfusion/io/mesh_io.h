@@ -22,9 +22,16 @@ namespace zipfusion {
 //! Reads a .ply or .obj file (extension case-insensitive); any other extension is InvalidInput.
 TriangleMesh read_mesh(const std::filesystem::path& path);
 
+//! How a mesh file is laid out beyond what the mesh holds.
+struct MeshLayout {
+  //! A PLY of a mesh without vertices declares the colour properties anyway, so that every frame
+  //! of a coloured sequence has the same header (an OBJ without vertices has nothing to colour).
+  bool colors_when_empty = false;
+};
+
 //! Writes a .ply (write_ply) or .obj (write_obj) file atomically; other extensions: InvalidInput.
 //! Precondition (assert): colours empty or one per position, indices in range.
-void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh);
+void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, const MeshLayout& layout = {});
 
 // --- PLY ---------------------------------------------------------------------------------------
 
@@ -47,10 +54,10 @@ TriangleMesh read_ply(const std::filesystem::path& path);
 //! Binary little-endian PLY, the ground-truth format of ../shared/FORMATS.md, exactly:
 //! element vertex N; property float x, y, z; (when the mesh has colours) property uchar red,
 //! green, blue; element face M; property list uchar int vertex_indices. No comments.
-std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh);
+std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh, const MeshLayout& layout = {});
 
 //! encode_ply written atomically (write_file_atomic).
-void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh);
+void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, const MeshLayout& layout = {});
 
 // --- OBJ ---------------------------------------------------------------------------------------
 

@@ -95,6 +95,23 @@ TEST(MeshIo, BinaryPlyRoundTripIsExact) {
   }
 }
 
+// Vertices no triangle uses go; the others keep their order, colours and triangles.
+TEST(TriangleMesh, RemoveUnreferencedVertices) {
+  TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}, {5, 0, 0}};
+  mesh.colors = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {3, 3, 3}, {4, 4, 4}, {5, 5, 5}};
+  mesh.triangles = {{1, 3, 4}, {4, 3, 5}};
+  std::vector<int> remap;
+  EXPECT_EQ(remove_unreferenced_vertices(mesh, remap), 2);
+  EXPECT_EQ(mesh.positions, (std::vector<Eigen::Vector3f>{{1, 0, 0}, {3, 0, 0}, {4, 0, 0}, {5, 0, 0}}));
+  EXPECT_EQ(mesh.colors, (std::vector<Rgb8>{{1, 1, 1}, {3, 3, 3}, {4, 4, 4}, {5, 5, 5}}));
+  EXPECT_EQ(mesh.triangles, (std::vector<Eigen::Vector3i>{{0, 1, 2}, {2, 1, 3}}));
+  const TriangleMesh compact = mesh;
+  EXPECT_EQ(remove_unreferenced_vertices(mesh, remap), 0);
+  EXPECT_EQ(mesh.positions, compact.positions);
+  EXPECT_EQ(mesh.triangles, compact.triangles);
+}
+
 TEST(MeshIo, EncodePlyWritesTheGroundTruthHeader) {
   TriangleMesh mesh;
   mesh.positions = {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}};
@@ -116,6 +133,13 @@ TEST(MeshIo, EncodePlyWritesTheGroundTruthHeader) {
   mesh.colors.clear();
   const std::vector<std::uint8_t> plain = encode_ply(mesh);
   EXPECT_EQ(std::string(plain.begin(), plain.begin() + 100).find("red"), std::string::npos);
+  // An empty mesh of a coloured sequence keeps the colour properties (and a plain mesh with
+  // vertices is not coloured by the layout).
+  EXPECT_EQ(encode_ply(mesh, {.colors_when_empty = true}), plain);
+  const std::vector<std::uint8_t> empty = encode_ply(TriangleMesh{}, {.colors_when_empty = true});
+  EXPECT_EQ(std::string(empty.begin(), empty.end()),
+            "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n");
 }
 
 TEST(MeshIo, GroundTruthMeshReadsAndReencodesByteForByte) {
