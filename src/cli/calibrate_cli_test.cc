@@ -86,6 +86,15 @@ TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {
   EXPECT_EQ(line_count(r.err), 1) << r.err;
   EXPECT_EQ(r.err.rfind("zipfusion: error: " + capture.string() + ": the rig is not connected: cam1 share", 0), 0u) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "r.json"));
+  // An output that cannot be written is found before the work (exit 3, nothing printed).
+  const std::string unwritable = (dir_ / "no" / "r.json").string();
+  for (const std::string& args : {"calibrate extrinsics " + capture.string() + " --out " + unwritable,
+                                  "calibrate intrinsics --images '" + (dir_ / "*.png").string() + "' --out " + unwritable}) {
+    r = run(args);
+    EXPECT_EQ(r.exit_code, 3) << args;
+    EXPECT_EQ(r.out, "") << args;
+    EXPECT_EQ(r.err, "zipfusion: error: " + unwritable + ": cannot write: folder " + (dir_ / "no").string() + " does not exist\n") << args;
+  }
 }
 
 }  // namespace

@@ -71,6 +71,7 @@ nlohmann::json intrinsics_json(const Intrinsics& k) {
 
 void run_intrinsics(const IntrinsicsArgs& args) {
   const BoardOptions board = parse_board(args.board, args.square_m);
+  check_output_file(args.out);
   const std::vector<std::string> files = glob_files(args.images);
   std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners(files.size());
   int width = 0, height = 0;
@@ -120,6 +121,7 @@ void run_intrinsics(const IntrinsicsArgs& args) {
 void run_extrinsics(ExtrinsicsArgs& args) {
   args.options.num_threads = args.threads;
   args.options.validate();
+  check_output_file(args.out);
   const Capture capture = Capture::open(args.capture);
   const WandObservations observations =
       detect_wand(capture, {}, args.threads, [](int done, int total) { show_progress("detect", done, total); });

@@ -344,6 +344,7 @@ TEST_F(RecordCli, BadOptionsGiveOneLineNamingTheOption) {
     EXPECT_EQ(r.exit_code, c.exit_code) << c.args << "\n" << r.out << r.err;
     EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_EQ(r.out.find("recording"), std::string::npos) << c.args << ": refused before it starts\n" << r.out;
   }
   EXPECT_FALSE(fs::exists(dir_ / "cap" / "rig.json"));
 }

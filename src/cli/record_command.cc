@@ -8,6 +8,7 @@
 #include "cli/commands.h"
 #include "cli/live_devices.h"
 #include "zipfusion/core/error.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/live/live_rig.h"
 #include "zipfusion/live/recorder.h"
 
@@ -56,6 +57,7 @@ void run_record(RecordArgs& args) {
   if (args.out.empty()) throw InvalidInput("--out: required (the capture folder to write)");
   args.options.color_extension = "." + args.color_format;
   args.options.validate();
+  check_new_folder(args.out, "--out");  // before the cameras start (record_capture checks it again)
   install_stop_on_signal();
   LiveRig live(open_live_cameras(args.devices), live_rig_options(args.devices, &stop_requested()));
   Rig rig;

@@ -201,11 +201,14 @@ TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {
       {"register " + capture + " --out " + out + " --iterations 0", "zipfusion: error: iterations: must be in [1, 100] per level"},
       {"register " + capture + " --out " + out + " --start-distance -1", "zipfusion: error: start-distance: must be positive (metres)"},
       {"register " + capture + " --out " + out + " --rig " + (dir_ / "none.json").string(), "none.json"},
-      {"register " + capture + " --out " + (dir_ / "no" / "such" / "dir.json").string(), "dir.json"},
+      // Checked before the registration, so that its work is not lost.
+      {"register " + capture + " --out " + (dir_ / "no" / "such" / "dir.json").string(),
+       (dir_ / "no" / "such" / "dir.json").string() + ": cannot write: folder " + (dir_ / "no" / "such").string() + " does not exist"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
     EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_EQ(r.out, "") << c.args;
     EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
   }

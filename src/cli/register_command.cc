@@ -12,6 +12,7 @@
 #include "cli/rig_poses.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/capture.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/registration/gpa_icp.h"
 
 namespace zipfusion::cli {
@@ -41,6 +42,7 @@ std::vector<int> spread_frames(const FrameRange& range, int count) {
 void run_register(RegisterArgs& args) {
   if (args.max_frames < 1) throw InvalidInput("--max-frames: must be at least 1, got " + std::to_string(args.max_frames));
   args.options.validate();
+  check_output_file(args.out);
   const Capture capture = Capture::open(args.capture);
   const Rig start = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");

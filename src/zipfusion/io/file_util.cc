@@ -72,6 +72,15 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
   write_file_atomic(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
+void check_output_file(const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw IoError(path.string() + ": is a folder, not a file to write");
+  const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (!fs::is_directory(folder, ec)) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " does not exist");
+  if (::access(folder.c_str(), W_OK) != 0) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " is not writable");
+}
+
 std::filesystem::path folder_path(const std::filesystem::path& dir) {
   // Only trailing separators and "." go: "a/../b" is left to the OS, which resolves ".." through
   // a link where a lexical normalisation would not.

@@ -19,6 +19,11 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_file_atomic(const std::filesystem::path& path, std::string_view text);
 
+//! Throws IoError naming `path` when a file could not be written there: its folder does not exist
+//! or is not writable, or the path is a folder. For commands that compute for a while before
+//! they write one file, checked first so that the work is not lost.
+void check_output_file(const std::filesystem::path& path);
+
 //! The folder a path names, without trailing separators or "." components: "out/" and "out/." are
 //! "out"; "." and "/" stay.
 std::filesystem::path folder_path(const std::filesystem::path& dir);
