@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_test_util.h"
+#include "zipfusion/io/image_io.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/rig.h"
 
@@ -53,10 +54,12 @@ TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
 TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   const fs::path boards = dir_ / "boards";
   ASSERT_EQ(run("synth --checkerboard --views 8 --out " + boards.string()).exit_code, 0);
+  write_color_image(boards / "view_blank.png", ColorImage(640, 480, Rgb8{128, 128, 128}));  // no board in it
   const fs::path out = dir_ / "cam.json";
   const CommandResult r = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board 9x6 --square 0.025 --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("view_007.png"), std::string::npos);  // the error per image
+  EXPECT_EQ(r.err, "calibrate: warning: only 8 views used; 10 or more, the board tilted differently in each, pin the principal point down\n");
   std::ifstream in(out);
   const nlohmann::json j = nlohmann::json::parse(in);
   std::ifstream truth_in(boards / "truth.json");
@@ -64,7 +67,12 @@ TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   for (const char* key : {"fx", "fy", "cx", "cy"}) {
     EXPECT_NEAR(j["intrinsics"][key].get<double>(), truth["intrinsics"][key].get<double>(), 0.005 * truth["intrinsics"][key].get<double>()) << key;
   }
-  EXPECT_EQ(j["views"].size(), 8u);
+  ASSERT_EQ(j["views"].size(), 9u);
+  for (const auto& view : j["views"]) {
+    const bool blank = view["file"].get<std::string>().ends_with("view_blank.png");
+    EXPECT_EQ(view["board_found"], !blank);
+    EXPECT_EQ(view["rms_px"].is_null(), blank) << view;  // no board, no error of its own (not 0)
+  }
 }
 
 TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {

@@ -63,6 +63,9 @@ BoardOptions parse_board(const std::string& text, double square_m) {
   return board;
 }
 
+// Fewer views used than this get a warning (Zhang's method needs 3; the principal point needs more).
+constexpr int kFewestViewsAdvised = 10;
+
 nlohmann::json intrinsics_json(const Intrinsics& k) {
   nlohmann::json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
   if (k.has_distortion) j["distortion"] = k.distortion;
@@ -94,7 +97,10 @@ void run_intrinsics(const IntrinsicsArgs& args) {
   std::cout << "view                                   board  used  RMS px\n";
   for (const ViewReport& v : result.views) {
     const bool duplicate = std::find(result.duplicates.begin(), result.duplicates.end(), v.name) != result.duplicates.end();
-    views.push_back({{"file", v.name}, {"board_found", v.board_found}, {"used", v.used}, {"duplicate", duplicate}, {"rms_px", v.rms_px}});
+    // No board (or a copy of an earlier view, not calibrated): no error of its own.
+    const bool measured = v.board_found && !duplicate;
+    views.push_back({{"file", v.name}, {"board_found", v.board_found}, {"used", v.used}, {"duplicate", duplicate},
+                     {"rms_px", measured ? nlohmann::json(v.rms_px) : nlohmann::json(nullptr)}});
     char line[512];
     // A copy of an earlier view was not calibrated: it has no error of its own.
     std::snprintf(line, sizeof line, "%-38s %-6s %-5s %s\n", v.name.c_str(), v.board_found ? "yes" : "no",
@@ -104,9 +110,14 @@ void run_intrinsics(const IntrinsicsArgs& args) {
   for (const std::string& name : result.rejected) std::cout << "rejected (error far above the other views): " << name << "\n";
   for (const std::string& name : result.duplicates) std::cout << "left out (the same board pose as an earlier view): " << name << "\n";
   const Intrinsics& k = result.intrinsics;
+  const auto used = std::count_if(result.views.begin(), result.views.end(), [](const ViewReport& v) { return v.used; });
   std::printf("fx %.3f  fy %.3f  cx %.3f  cy %.3f  k1 %.5f  k2 %.5f; overall RMS %.3f px over %zu views\n", k.fx, k.fy, k.cx, k.cy,
-              k.distortion[0], k.distortion[1], result.rms_px,
-              static_cast<size_t>(std::count_if(result.views.begin(), result.views.end(), [](const ViewReport& v) { return v.used; })));
+              k.distortion[0], k.distortion[1], result.rms_px, static_cast<size_t>(used));
+  // A low RMS over few views says little: with three, the principal point can be pixels off.
+  if (used < kFewestViewsAdvised) {
+    print_diagnostic("calibrate: warning: only " + std::to_string(used) + " views used; " + std::to_string(kFewestViewsAdvised) +
+                     " or more, the board tilted differently in each, pin the principal point down");
+  }
   const nlohmann::json out = {{"format", "zipfusion.intrinsics/1"},
                               {"intrinsics", intrinsics_json(k)},
                               {"rms_px", result.rms_px},
