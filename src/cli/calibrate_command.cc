@@ -158,9 +158,12 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   for (const PairReport& p : result.pairs) {
     if (p.in_tree) std::cout << " " << capture.rig().cameras[p.camera_a].name << "-" << capture.rig().cameras[p.camera_b].name << " (" << p.inliers << " inliers)";
   }
-  std::printf("\n%d LED points, mean LED distance %.4f m (wand %.4f m), %d observations dropped as outliers%s\n", result.points,
-              result.led_distance_mean_m, args.options.led_distance_m, result.dropped_observations,
+  std::printf("\n%d LED points, %d observations dropped as outliers%s\n", result.points, result.dropped_observations,
               result.converged ? "" : "; bundle adjustment stopped before converging");
+  // Cameras alone see the rig only up to scale: the scale is the one length given, not checked.
+  std::printf("scale: from --led-distance %.4f m alone (the adjusted LED pairs average %.4f m); a wrong length scales every camera's "
+              "distance from %s by as much\n",
+              args.options.led_distance_m, result.led_distance_mean_m, capture.rig().cameras[0].name.c_str());
   if (capture.ground_truth_rig()) {
     const Rig& truth = *capture.ground_truth_rig();
     double worst_mm = 0, worst_deg = 0;
