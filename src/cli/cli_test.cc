@@ -217,6 +217,7 @@ std::vector<std::string> terminal_lines(const std::string& written) {
 // On a terminal the progress is drawn in place; a warning takes its line and the progress is
 // drawn again below, so that no warning starts in the middle of a progress line.
 TEST_F(Cli, AWarningDoesNotRunIntoTheProgressLine) {
+  if (std::system("script -qec true /dev/null > /dev/null 2>&1 < /dev/null") != 0) GTEST_SKIP() << "no util-linux script(1) or no pseudo-terminal";
   const fs::path capture = dir_ / "cap";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 40 --cameras 2 --resolution 160x120").exit_code, 0);
   const fs::path depth = capture / "cam1" / "depth" / "000030.png";  // decoded after the progress has begun
@@ -312,6 +313,18 @@ TEST_F(Cli, AnOutputFolderWithATrailingSlashIsThatFolder) {
     EXPECT_TRUE(fs::exists(board / "view_000.png")) << suffix;
     fs::remove_all(board);
   }
+}
+
+// reconstruct's --out through a link to a folder not made yet makes the folder where it points.
+TEST_F(Cli, ReconstructWritesThroughALinkToANewFolder) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  fs::create_symlink("runs/new", dir_ / "outlink");
+  const CommandResult r = run("reconstruct " + capture.string() + " --out " + (dir_ / "outlink").string() + "/");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_symlink(dir_ / "outlink"));
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "runs" / "new" / "000000.ply"));
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "runs" / "new" / "stats.json"));
 }
 
 TEST_F(Cli, EverySubcommandHasHelp) {

@@ -56,19 +56,22 @@ fs::path reconstruction_path(const fs::path& dir, int frame) {
   return {};
 }
 
-// The per-frame values averaged over frames, each over the frames where it is defined.
+// The per-frame values averaged over the frames with a reconstruction, each over those where it
+// is defined; completeness over every frame (a missing one is 0), so that leaving a frame out
+// cannot raise it, nor lower a count of defects.
 struct MeanQuality {
   double triangles = 0, accuracy_mean_mm = 0, accuracy_p95_mm = 0, completeness = 0, area_ratio = 0;
   double reconstruction_area_m2 = 0, observed_true_area_m2 = 0, components = 0, large_components = 0;
   double non_manifold_edges = 0, folded_edges = 0, doubled_triangles = 0, color_error = 0;
 };
 
-MeanQuality mean_quality(const std::vector<FrameQuality>& frames) {
-  auto mean = [&](auto field) {
+MeanQuality mean_quality(const std::vector<FrameQuality>& frames, const std::vector<char>& present) {
+  auto mean = [&](auto field, bool missing_counts = false) {
     double sum = 0;
     int count = 0;
-    for (const FrameQuality& q : frames) {
-      const double value = static_cast<double>(q.*field);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (!present[i] && !missing_counts) continue;
+      const double value = static_cast<double>(frames[i].*field);
       if (!std::isfinite(value)) continue;
       sum += value;
       ++count;
@@ -78,7 +81,7 @@ MeanQuality mean_quality(const std::vector<FrameQuality>& frames) {
   return {.triangles = mean(&FrameQuality::triangles),
           .accuracy_mean_mm = mean(&FrameQuality::accuracy_mean_mm),
           .accuracy_p95_mm = mean(&FrameQuality::accuracy_p95_mm),
-          .completeness = mean(&FrameQuality::completeness),
+          .completeness = mean(&FrameQuality::completeness, true),
           .area_ratio = mean(&FrameQuality::area_ratio),
           .reconstruction_area_m2 = mean(&FrameQuality::reconstruction_area_m2),
           .observed_true_area_m2 = mean(&FrameQuality::observed_true_area_m2),
@@ -114,8 +117,7 @@ void run_eval(EvalArgs& args) {
   if (!fs::is_directory(args.recon_dir, ec)) throw InvalidInput(args.recon_dir + ": not a folder of reconstructions");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
 
-  // A frame without a reconstruction is scored as an empty mesh (nothing complete, no accuracy),
-  // so that leaving frames out cannot raise the mean.
+  // A frame without a reconstruction is scored as an empty mesh (nothing complete, no accuracy).
   std::vector<int> frames, missing;
   std::vector<fs::path> paths;  // per frame; empty where missing
   for (int frame = range.begin; frame < range.end; ++frame) {
@@ -136,7 +138,9 @@ void run_eval(EvalArgs& args) {
     results.push_back(evaluate_frame(reconstruction, truth, true_rig, volume, options));
     show_progress("eval", static_cast<int>(i + 1), static_cast<int>(frames.size()));
   }
-  const MeanQuality mean = mean_quality(results);
+  std::vector<char> present;
+  for (const fs::path& path : paths) present.push_back(!path.empty());
+  const MeanQuality mean = mean_quality(results, present);
 
   if (args.json) {
     nlohmann::ordered_json out;

@@ -62,7 +62,7 @@ void run_reconstruct(ReconstructArgs& args) {
 
   // The output folder is checked before the reconstruction is set up (--register once registers
   // the rig first, which takes seconds).
-  const fs::path out_dir = folder_path(args.out);  // "out/." could not be removed on failure
+  const fs::path out_dir = output_folder(args.out);  // "out/." could not be removed on failure; a link's folder is made where it points
   std::error_code ec;
   const bool out_dir_is_new = !fs::exists(out_dir, ec);
   if (!out_dir_is_new) check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);

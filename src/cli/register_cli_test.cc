@@ -9,6 +9,7 @@
 
 #include "cli/cli_test_util.h"
 #include "zipfusion/io/capture.h"
+#include "zipfusion/io/image_io.h"
 #include "zipfusion/io/rig.h"
 #include "zipfusion/registration/gpa_icp.h"
 
@@ -120,7 +121,8 @@ TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
   const CommandResult r = run("register " + capture + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("cam3  ") , std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("(not joined to the held camera through any overlap: keeps its pose)"), std::string::npos) << r.out;
+  // Five metres up, all it sees lies outside the volume: no usable depth.
+  EXPECT_NE(r.out.find("(no depth in these frames, or none in the volume: keeps its pose)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("1 camera(s) not joined to cam0"), std::string::npos) << r.out;
   EXPECT_FALSE(read_rig(out).poses_trusted);
   // Two groups, {cam0, cam1} and {cam2, cam3} moved up together: each overlaps within itself, but
@@ -132,6 +134,7 @@ TEST_F(RegisterCli, ACameraThatOverlapsNoneLeavesTheRigUntrusted) {
   const CommandResult groups = run("register " + capture + " --out " + out);
   ASSERT_EQ(groups.exit_code, 0) << groups.err;
   EXPECT_NE(groups.out.find("2 camera(s) not joined to cam0"), std::string::npos) << groups.out;
+  EXPECT_NE(groups.out.find("(not joined to the held camera through any overlap: keeps its pose)"), std::string::npos) << groups.out;
   // cam2 and cam3 did match each other: counted per camera, as before, they looked registered.
   const auto matches_of = [&](const std::string& name) {
     std::istringstream lines(groups.out);
@@ -169,17 +172,25 @@ TEST_F(RegisterCli, ARigOfOneCameraIsNotRegistered) {
 TEST_F(RegisterCli, ADeadFirstCameraLeavesTheNextOneHeld) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 4 --cameras 4 --resolution 320x240 --miscalibrate 1,0.02 --noise none").exit_code, 0);
-  for (const auto& file : fs::directory_iterator(fs::path(capture) / "cam0" / "depth")) fs::remove(file.path());
+  // A covered sensor: frames of zeros.
+  for (const auto& file : fs::directory_iterator(fs::path(capture) / "cam0" / "depth")) write_depth_png(file.path(), DepthImage(320, 240, 0));
   const std::string out = (dir_ / "r.json").string();
   const CommandResult r = run("register " + capture + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("(no depth in these frames: keeps its pose)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(no depth in these frames, or none in the volume: keeps its pose)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("(held: the others are registered to it)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("against ground_truth/rig.json (pose relative to cam1):"), std::string::npos) << r.out;
   const Capture cap = Capture::open(capture);
   const std::vector<RelativePoseError> errors =
       relative_pose_errors(world_from_depth_poses(read_rig(out)), world_from_depth_poses(*cap.ground_truth_rig()), 1);
   for (int c : {2, 3}) EXPECT_LT(errors[c].translation_m * 1000, 5.0) << c << "\n" << r.out;
+  // With cam2's and cam3's depth gone too, only cam1 has depth: nothing to register.
+  for (const auto& file : fs::directory_iterator(fs::path(capture) / "cam2" / "depth")) fs::remove(file.path());
+  for (const auto& file : fs::directory_iterator(fs::path(capture) / "cam3" / "depth")) fs::remove(file.path());
+  const CommandResult one = run("register " + capture + " --out " + (dir_ / "one.json").string());
+  EXPECT_EQ(one.exit_code, 2);
+  EXPECT_EQ(one.err, "zipfusion: error: " + capture + ": fewer than two cameras have depth in the frames used (none: cam0, cam2, cam3); nothing to "
+                     "register, nothing written\n");
 }
 
 TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {

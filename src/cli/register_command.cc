@@ -66,6 +66,14 @@ void run_register(RegisterArgs& args) {
   // depth): an error, not a rig that says its poses are trusted. When it is some, the rig is
   // written but not marked trusted, so that reconstruct's --register auto refines it again.
   const std::string& gauge = start.cameras[result.gauge].name;
+  std::string without_depth;
+  for (size_t c = 0; c < start.cameras.size(); ++c) {
+    if (!result.has_depth[c]) without_depth += (without_depth.empty() ? "" : ", ") + start.cameras[c].name;
+  }
+  if (std::count(result.has_depth.begin(), result.has_depth.end(), 1) < 2) {
+    throw InvalidInput(args.capture + ": fewer than two cameras have depth in the frames used" +
+                       (without_depth.empty() ? std::string() : " (none: " + without_depth + ")") + "; nothing to register, nothing written");
+  }
   int unmatched = 0;
   for (size_t c = 0; c < start.cameras.size(); ++c) unmatched += !result.joined_to_gauge[c];
   if (unmatched == static_cast<int>(start.cameras.size()) - 1) {
@@ -75,11 +83,6 @@ void run_register(RegisterArgs& args) {
     throw InvalidInput(args.capture + ": no camera's depth joins " + gauge + "'s within the registration's reach (" + reach +
                        "): the starting poses are too far off, the depth too small for --coarsest-level " + std::to_string(args.options.coarsest_level) +
                        ", or the frames have no overlapping depth; nothing written");
-  }
-  std::vector<std::string> without_depth;
-  for (size_t c = 0; c < start.cameras.size(); ++c) {
-    const bool seen = std::any_of(depth.begin(), depth.end(), [c](const std::vector<Image<float>>& frame) { return !frame[c].empty(); });
-    if (!seen) without_depth.push_back(start.cameras[c].name);
   }
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
@@ -98,9 +101,8 @@ void run_register(RegisterArgs& args) {
   for (size_t c = 0; c < start.cameras.size(); ++c) {
     const Rigid3d change = start.cameras[c].world_from_depth.inverse() * result.world_from_depth[c];
     const double moved_mm = (result.world_from_depth[c].translation() - start.cameras[c].world_from_depth.translation()).norm() * 1000;
-    const bool has_depth = std::find(without_depth.begin(), without_depth.end(), start.cameras[c].name) == without_depth.end();
     const char* note = static_cast<int>(c) == result.gauge ? "  (held: the others are registered to it)"
-                       : !has_depth                        ? "  (no depth in these frames: keeps its pose)"
+                       : !result.has_depth[c]              ? "  (no depth in these frames, or none in the volume: keeps its pose)"
                        : !result.joined_to_gauge[c]        ? "  (not joined to the held camera through any overlap: keeps its pose)"
                                                            : "";
     std::printf("%-10s %12.3f %12.1f %14s %14s %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,

@@ -168,8 +168,8 @@ void run_serve(ServeArgs& args) {
   long frames_since = 0, bytes_since = 0;
   std::vector<int> remap;  // remove_unreferenced_vertices' scratch
   const PipelineStats stats = run_pipeline(source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
-    const Clock::time_point t = Clock::now();
     remove_unreferenced_vertices(frame.result.mesh, remap);
+    const Clock::time_point t = Clock::now();
     const std::string draco = encode_draco(frame.result.mesh, quantization_box(frame.result.mesh, reconstruction.rig().volume), args.draco);
     const double encode_ms = ms_since(t);
     const nlohmann::ordered_json header = {{"type", "frame"},

@@ -14,7 +14,18 @@ void TriangleMesh::append(const TriangleMesh& other) {
   for (const Eigen::Vector3i& t : other.triangles) triangles.push_back(t.array() + offset);
 }
 
+void assert_well_formed(const TriangleMesh& mesh) {
+  assert(mesh.colors.empty() || mesh.colors.size() == mesh.positions.size());
+#ifndef NDEBUG
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    assert((t.array() >= 0).all() && (t.array() < static_cast<int>(mesh.positions.size())).all());
+  }
+#endif
+  (void)mesh;
+}
+
 int remove_unreferenced_vertices(TriangleMesh& mesh, std::vector<int>& remap) {
+  assert_well_formed(mesh);
   const int count = static_cast<int>(mesh.positions.size());
   remap.assign(count, -1);
   for (const Eigen::Vector3i& t : mesh.triangles) {

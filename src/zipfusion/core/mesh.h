@@ -22,8 +22,12 @@ struct TriangleMesh {
   void append(const TriangleMesh& other);
 };
 
+//! Asserts (debug builds) what every mesh function assumes: colours empty or one per position,
+//! triangle indices in range.
+void assert_well_formed(const TriangleMesh& mesh);
+
 //! Drops the vertices no triangle uses, keeping the others' order, and renumbers the triangles;
-//! returns how many went. `remap` is scratch (kept by the caller: no allocation once it has grown).
+//! returns how many went. Precondition: assert_well_formed. `remap` is scratch (kept by the caller: no allocation once it has grown).
 //! Zippering leaves a few such vertices: seam points whose triangles were all dropped.
 int remove_unreferenced_vertices(TriangleMesh& mesh, std::vector<int>& remap);
 

@@ -202,7 +202,16 @@ TEST(WriteFolderAtomic, WritesThroughLinksAndKeepsThem) {
     check_new_folder(dir / "to_link", "--out");
     ADD_FAILURE() << "a link to a folder that is not empty was accepted";
   } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "runs" / "empty").string() + ": already exists and is not empty (choose a new --out)");
+    EXPECT_EQ(std::string(e.what()),
+              (dir / "to_link").string() + " (a link to " + (dir / "runs" / "empty").string() + "): already exists and is not empty (choose a new --out)");
+  }
+  write_file_atomic(dir / "file", "x");
+  fs::create_symlink("file", dir / "to_file");
+  try {
+    check_new_folder(dir / "to_file", "--out");
+    ADD_FAILURE() << "a link to a file was accepted";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "to_file").string() + " (a link to " + (dir / "file").string() + "): is a file, not a folder (choose a new --out)");
   }
   fs::create_symlink("loop_b", dir / "loop_a");
   fs::create_symlink("loop_a", dir / "loop_b");

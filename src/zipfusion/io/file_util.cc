@@ -93,11 +93,7 @@ std::filesystem::path folder_path(const std::filesystem::path& dir) {
   return folder;
 }
 
-namespace {
-
-// The folder a chain of links ends at, dangling or not ("out" when out is no link): the folder
-// to write, so that a link to it stays a link and is not replaced by the written folder.
-std::filesystem::path link_target(const std::filesystem::path& asked_for) {
+std::filesystem::path output_folder(const std::filesystem::path& asked_for) {
   namespace fs = std::filesystem;
   fs::path dir = folder_path(asked_for);
   std::error_code ec;
@@ -110,14 +106,17 @@ std::filesystem::path link_target(const std::filesystem::path& asked_for) {
   return dir;
 }
 
-}  // namespace
-
 void check_new_folder(const std::filesystem::path& asked_for, std::string_view option) {
   namespace fs = std::filesystem;
-  const fs::path dir = link_target(asked_for);
+  const fs::path dir = output_folder(asked_for);
+  // Named as asked for, and where a link leads, by both.
+  const std::string name = dir == folder_path(asked_for) ? dir.string() : asked_for.string() + " (a link to " + dir.string() + ")";
   std::error_code ec;
-  if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
-    throw InvalidInput(dir.string() + ": already exists and is not empty (choose a new " + std::string(option) + ")");
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw InvalidInput(name + ": is a file, not a folder (choose a new " + std::string(option) + ")");
+  }
+  if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+    throw InvalidInput(name + ": already exists and is not empty (choose a new " + std::string(option) + ")");
   }
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
   fs::create_directories(parent, ec);
@@ -137,7 +136,7 @@ std::string in_folder_asked_for(std::string text, const std::filesystem::path& s
 
 void write_folder_atomic(const std::filesystem::path& asked_for, const std::function<void(const std::filesystem::path& staging)>& fill) {
   namespace fs = std::filesystem;
-  const fs::path dir = link_target(asked_for);  // the staging folder goes beside it, not into it
+  const fs::path dir = output_folder(asked_for);  // the staging folder goes beside it, not into it
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
   // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) on "." + string + … once inlined here.
   std::string staging_name = ".";

@@ -28,6 +28,11 @@ void check_output_file(const std::filesystem::path& path);
 //! "out"; "." and "/" stay.
 std::filesystem::path folder_path(const std::filesystem::path& dir);
 
+//! The folder to write for an output folder asked for as `dir`: folder_path(dir), then any chain
+//! of links followed to where it ends, dangling or not, so that a link to the folder stays a link
+//! and is not replaced by the folder written. Throws InvalidInput on a loop of links.
+std::filesystem::path output_folder(const std::filesystem::path& dir);
+
 //! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command
 //! line option that chose it), and IoError when its parent folder cannot be created. A link is
 //! followed: what is checked (and written by write_folder_atomic) is the folder it points to.

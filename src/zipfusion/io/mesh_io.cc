@@ -566,15 +566,6 @@ void append_int(std::string& out, long long value) {
   out.append(buf, result.ptr);
 }
 
-void check_mesh(const TriangleMesh& mesh) {
-  assert(mesh.colors.empty() || mesh.colors.size() == mesh.positions.size());
-#ifndef NDEBUG
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    assert((t.array() >= 0).all() && (t.array() < static_cast<int>(mesh.positions.size())).all());
-  }
-#endif
-  (void)mesh;
-}
 
 }  // namespace
 
@@ -597,7 +588,7 @@ TriangleMesh read_ply(const std::filesystem::path& path) {
 }
 
 std::vector<std::uint8_t> encode_ply(const TriangleMesh& mesh, const MeshLayout& layout) {
-  check_mesh(mesh);
+  assert_well_formed(mesh);
   const bool colors = mesh.has_colors() || (layout.colors_when_empty && mesh.positions.empty());
   std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex " +
                        std::to_string(mesh.positions.size()) +
@@ -700,7 +691,7 @@ TriangleMesh read_obj(const std::filesystem::path& path) {
 }
 
 std::string encode_obj(const TriangleMesh& mesh) {
-  check_mesh(mesh);
+  assert_well_formed(mesh);
   const bool colors = mesh.has_colors();
   std::string out;
   out.reserve(mesh.positions.size() * (colors ? 72 : 40) + mesh.triangles.size() * 24);

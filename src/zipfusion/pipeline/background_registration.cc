@@ -69,19 +69,19 @@ void BackgroundRegistration::run() {
       for (const FrameSet& set : window) depth.push_back(registration_depth(rig, set, options_.registration));
       RegistrationResult result = register_rig(rig, depth, options_.registration);
       // Published only when the surfaces agree at least as well as before where both poses gave
-      // correspondences, and no fewer cameras have any: a window where the cameras barely overlap
-      // must not move a good calibration, and poses whose depth did not meet at all (none before)
-      // are worth replacing by ones where it does.
+      // correspondences, and every camera that had some still has: a window where the cameras
+      // barely overlap must not move a good calibration, and poses whose depth did not meet at
+      // all (none before) are worth replacing by ones where it does.
       double before = 0, after = 0;
-      int matched_before = 0, matched_after = 0;
+      bool lost = false, matched = false;
       for (size_t c = 0; c < result.rmse_after_m.size(); ++c) {
-        matched_before += result.correspondences_before[c] > 0;
-        matched_after += result.correspondences_after[c] > 0;
+        lost = lost || (result.correspondences_before[c] > 0 && result.correspondences_after[c] == 0);
+        matched = matched || result.correspondences_after[c] > 0;
         if (result.correspondences_before[c] == 0 || result.correspondences_after[c] == 0) continue;
         before += result.rmse_before_m[c];
         after += result.rmse_after_m[c];
       }
-      if (after <= before && matched_after >= matched_before && matched_after > 0) {
+      if (after <= before && !lost && matched) {
         next = std::make_shared<PublishedPoses>();
         next->world_from_depth = result.world_from_depth;
         next->result = std::move(result);

@@ -401,15 +401,15 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
     result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
     result.correspondences_before.push_back(before.count[c]);
   }
-  // The gauge, whose pose is held: the first camera with depth (a camera without any cannot hold
+  // The gauge, whose pose is held: the first camera with usable depth, samples at the finest
+  // level in some frame (a camera without, dead, covered or all outside the volume, cannot hold
   // the others in place).
-  for (int c = 0; c < cameras; ++c) {
-    const bool seen = std::any_of(depth_m.begin(), depth_m.end(), [c](const std::vector<Image<float>>& frame) { return !frame[c].empty(); });
-    if (seen) {
-      result.gauge = c;
-      break;
-    }
+  result.has_depth.assign(cameras, 0);
+  for (const auto& frame : finest) {
+    for (int c = 0; c < cameras; ++c) result.has_depth[c] = result.has_depth[c] || !frame[c]->empty();
   }
+  const auto first_with_depth = std::find(result.has_depth.begin(), result.has_depth.end(), 1);
+  result.gauge = first_with_depth == result.has_depth.end() ? 0 : static_cast<int>(first_with_depth - result.has_depth.begin());
   std::vector<int> free_cameras, free_rows;  // the others, and their rows in the normal equations
   for (int c = 0; c < cameras; ++c) {
     if (c == result.gauge) continue;

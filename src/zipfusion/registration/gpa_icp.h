@@ -3,7 +3,7 @@
 //! Global registration of all cameras at once (paper Section III-A): GPA-ICP. Correspondences are
 //! mutual closest points (nanoflann k-d trees) between every two cameras' clouds of the same
 //! frame, within a distance that shrinks over the iterations; one joint solve then moves every
-//! camera (the first camera with depth fixed as the gauge) so that corresponding points meet. Generalised Procrustes
+//! camera (the first camera with usable depth fixed as the gauge) so that corresponding points meet. Generalised Procrustes
 //! Analysis minimises each correspondence tuple's squared distances to its centroid, which for
 //! pairs is half their squared distance; here that objective is measured along the surface normal
 //! (symmetric point-to-plane: the two points' mean normal) and solved jointly by one Gauss-Newton
@@ -67,7 +67,8 @@ struct RegistrationOptions {
 };
 
 struct RegistrationResult {
-  int gauge = 0;                           // the camera whose pose is held: the first with depth in any frame
+  int gauge = 0;                           // the camera whose pose is held: the first with depth (has_depth)
+  std::vector<char> has_depth;             // per camera: usable depth (samples at the finest level) in some frame
   std::vector<Rigid3d> world_from_depth;   // refined poses; the gauge's unchanged
   std::vector<double> rmse_before_m;       // per camera: point-to-plane RMS of its correspondences at the input poses (0 where none)
   std::vector<int> correspondences_before; // per camera, at the input poses

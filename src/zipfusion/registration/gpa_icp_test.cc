@@ -168,13 +168,18 @@ TEST(RegisterRig, SixNoiseFreeCamerasConvergeFromTwoDegreesFiveCentimetres) {
 }
 
 // A camera with no depth cannot hold the others: the first camera with depth is the gauge, the
-// others are registered to it, and the one without depth keeps its pose.
+// others are registered to it, and the one without depth keeps its pose. Camera 0 here has no
+// image in some frames and one of zeros (a covered sensor) in the others.
 TEST(RegisterRig, WithoutCameraZerosDepthTheFirstCameraWithDepthIsHeld) {
   const RegistrationOptions options;
   SyntheticRing ring = make_ring(6, 4, 2.0, 0.05, false, options);
-  for (auto& frame : ring.depth) frame[0] = Image<float>();
+  for (size_t f = 0; f < ring.depth.size(); ++f) {
+    Image<float>& depth = ring.depth[f][0];
+    depth = f % 2 == 0 ? Image<float>() : Image<float>(depth.width, depth.height, 0.0f);
+  }
   const RegistrationResult result = register_rig(ring.start, ring.depth, options);
   EXPECT_EQ(result.gauge, 1);
+  EXPECT_EQ(result.has_depth, (std::vector<char>{0, 1, 1, 1, 1, 1}));
   EXPECT_TRUE(result.world_from_depth[0].isApprox(ring.start.cameras[0].world_from_depth));
   EXPECT_TRUE(result.world_from_depth[1].isApprox(ring.start.cameras[1].world_from_depth));
   EXPECT_EQ(result.correspondences_before[0], 0);
