@@ -92,9 +92,9 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   // Decoding, reconstruction and writing overlap: each runs on its own thread.
   std::vector<int> remap;  // remove_unreferenced_vertices' scratch
   const PipelineStats pipeline = run_pipeline(in.source, reconstruction.reconstructor(), [&](PipelineFrame& frame) {
-    const FrameResult& result = frame.result;
     const Clock::time_point write_start = Clock::now();
     remove_unreferenced_vertices(frame.result.mesh, remap);
+    const FrameResult& result = frame.result;
     // Every frame's file has colours, an empty one (no camera in its frame set) too.
     write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
     const double write_ms = ms_since(write_start);

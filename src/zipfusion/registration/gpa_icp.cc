@@ -397,10 +397,14 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   // Residuals before, at the input poses: measured on the finest level with the end distance.
   Clouds finest = make_clouds(rig, depth_m, options.finest_level, options);
   const Accumulated before = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
-  for (int c = 0; c < cameras; ++c) {
-    result.rmse_before_m.push_back(before.count[c] ? std::sqrt(before.sum_sq[c] / before.count[c]) : 0.0);
-    result.correspondences_before.push_back(before.count[c]);
-  }
+  // Per camera: the RMS of its correspondences (0 where none) and their count.
+  const auto per_camera = [cameras](const Accumulated& acc, std::vector<double>& rmse_m, std::vector<int>& count) {
+    for (int c = 0; c < cameras; ++c) {
+      rmse_m.push_back(acc.count[c] ? std::sqrt(acc.sum_sq[c] / acc.count[c]) : 0.0);
+      count.push_back(acc.count[c]);
+    }
+  };
+  per_camera(before, result.rmse_before_m, result.correspondences_before);
   // The gauge, whose pose is held: the first camera with usable depth, samples at the finest
   // level in some frame (a camera without, dead, covered or all outside the volume, cannot hold
   // the others in place).
@@ -484,10 +488,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
     poses.world_from_depth[c] = start.world_from_depth[c];
   }
   if (restored) after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
-  for (int c = 0; c < cameras; ++c) {
-    result.rmse_after_m.push_back(after.count[c] ? std::sqrt(after.sum_sq[c] / after.count[c]) : 0.0);
-    result.correspondences_after.push_back(after.count[c]);
-  }
+  per_camera(after, result.rmse_after_m, result.correspondences_after);
   result.world_from_depth = poses.world_from_depth;
   return result;
 }
