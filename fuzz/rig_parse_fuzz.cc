@@ -1,5 +1,6 @@
 // libFuzzer target: rig.json (io/rig.h), the file every capture, outside tool and calibration
-// writes. A parsed rig must come back field for field from what format_rig writes of it.
+// writes, and the intrinsics files `calibrate extrinsics --intrinsics` reads. A parsed rig must
+// come back field for field from what format_rig writes of it; parsed intrinsics likewise.
 
 #include <cstddef>
 #include <cstdint>
@@ -37,10 +38,20 @@ void check_rig(const std::string& text) {
   if (!same_rig(again, *rig)) fail("rig.json round trip changed the rig");
 }
 
+void check_intrinsics_file(const std::string& text) {
+  const auto k = decoded_or_error("intrinsics", [&] { return parse_intrinsics_file(text, kSource); });
+  if (!k) return;
+  const std::string written = std::string("{\"format\": \"") + kIntrinsicsFormat + "\", \"intrinsics\": " + format_intrinsics(*k) + "}";
+  const Intrinsics again = must_decode([&] { return parse_intrinsics_file(written, kSource); }, "intrinsics file");
+  if (!(again == *k)) fail("intrinsics file round trip changed the intrinsics");
+}
+
 }  // namespace
 }  // namespace zipfusion::fuzz
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  zipfusion::fuzz::check_rig(std::string(reinterpret_cast<const char*>(data), size));
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  zipfusion::fuzz::check_rig(text);
+  zipfusion::fuzz::check_intrinsics_file(text);
   return 0;
 }

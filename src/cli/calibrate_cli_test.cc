@@ -51,6 +51,89 @@ TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
   }
 }
 
+// Calibrated intrinsics given per camera (`--intrinsics NAME=FILE`, the files `calibrate
+// intrinsics` writes) are used for the wand and written into the rig: with the capture's own
+// (wrong) intrinsics the poses are far off, with the files' they are found, and the output rig
+// carries the files' intrinsics exactly.
+TEST_F(CalibrateCli, TakesEachCamerasCalibratedIntrinsicsIntoTheRig) {
+  const fs::path capture = dir_ / "wand";
+  ASSERT_EQ(run("synth --wand --out " + capture.string() + " --frames 120 --cameras 4 --resolution 320x240").exit_code, 0);
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  // The capture's rig.json: every colour camera's focal length 5 % long and its principal point
+  // 6 pixels off, as a device's nominal intrinsics are; its depth intrinsics off too.
+  Rig nominal = read_rig(capture / "rig.json");
+  std::string color_files, depth_files;
+  for (size_t c = 0; c < nominal.cameras.size(); ++c) {
+    CameraModel& model = nominal.cameras[c];
+    model.color_intrinsics->fx *= 1.05;
+    model.color_intrinsics->fy *= 1.05;
+    model.color_intrinsics->cx += 6;
+    model.depth_intrinsics.cx -= 3;
+    auto write_intrinsics = [&](const std::string& file, const Intrinsics& k) {
+      const fs::path path = dir_ / file;
+      write_file_atomic(path, "{\"format\": \"zipfusion.intrinsics/1\", \"rms_px\": 0.1, \"intrinsics\": " + format_intrinsics(k) + "}\n");
+      return " " + model.name + "=" + path.string();
+    };
+    color_files += " --intrinsics" + write_intrinsics(model.name + "_color.json", *truth.cameras[c].color_intrinsics);
+    depth_files += " --depth-intrinsics" + write_intrinsics(model.name + "_depth.json", truth.cameras[c].depth_intrinsics);
+  }
+  write_rig(capture / "rig.json", nominal);
+  auto worst_error = [&](const Rig& calibrated) {
+    double worst_m = 0, worst_deg = 0;
+    for (size_t c = 0; c < truth.cameras.size(); ++c) {
+      const Rigid3d& est = calibrated.cameras[c].world_from_depth;
+      const Rigid3d& tru = truth.cameras[c].world_from_depth;
+      worst_m = std::max(worst_m, (est.translation() - tru.translation()).norm());
+      worst_deg = std::max(worst_deg, rotation_angle_deg(tru.inverse() * est));
+    }
+    return std::pair{worst_m, worst_deg};
+  };
+
+  const fs::path nominal_out = dir_ / "nominal.json";
+  CommandResult r = run("calibrate extrinsics " + capture.string() + " --out " + nominal_out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GT(worst_error(read_rig(nominal_out)).first, 0.05);  // the wrong focal lengths misplace the cameras
+
+  // The options before the capture: each takes one CAMERA=FILE, never the capture after it.
+  const fs::path out = dir_ / "rig.json";
+  r = run("calibrate extrinsics" + color_files + depth_files + " " + capture.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Rig calibrated = read_rig(out);
+  const auto [error_m, error_deg] = worst_error(calibrated);
+  EXPECT_LT(error_m, 0.01);  // as CalibratesAWandCaptureIntoARigTheReaderLoads
+  EXPECT_LT(error_deg, 0.4);
+  for (size_t c = 0; c < truth.cameras.size(); ++c) {
+    EXPECT_EQ(*calibrated.cameras[c].color_intrinsics, *truth.cameras[c].color_intrinsics) << c;
+    EXPECT_EQ(calibrated.cameras[c].depth_intrinsics, truth.cameras[c].depth_intrinsics) << c;
+  }
+
+  // What cannot be applied is one line naming the option or the file, and nothing is written.
+  const std::string bad_file = (dir_ / "bad.json").string();
+  write_file_atomic(bad_file, std::string("{\"format\": \"zipfusion.intrinsics/1\", \"intrinsics\": {\"width\": 320, \"height\": 240, "
+                                          "\"fx\": -1, \"fy\": 262.5, \"cx\": 159.5, \"cy\": 119.5}}"));
+  const std::string big_file = (dir_ / "big.json").string();
+  Intrinsics big = *truth.cameras[0].color_intrinsics;
+  big.width = 640;
+  big.height = 480;
+  write_file_atomic(big_file, "{\"format\": \"zipfusion.intrinsics/1\", \"intrinsics\": " + format_intrinsics(big) + "}");
+  const std::string rig_json = (capture / "rig.json").string();
+  const std::pair<std::string, std::string> cases[] = {
+      {"--intrinsics cam9=" + bad_file, "--intrinsics: no camera \"cam9\" in " + rig_json + " (its cameras: cam0, cam1, cam2, cam3)"},
+      {"--intrinsics cam0", "--intrinsics: expected CAMERA=FILE (e.g. cam0=cam0.json), got \"cam0\""},
+      {"--intrinsics cam0=" + (dir_ / "cam0_color.json").string() + " --intrinsics cam0=" + big_file, "--intrinsics: camera cam0 is given twice"},
+      {"--intrinsics cam1=" + bad_file, bad_file + ": intrinsics.fx: must be positive, got -1"},
+      {"--intrinsics cam1=" + rig_json, rig_json + ": format: must be \"zipfusion.intrinsics/1\", got \"zipfusion.rig/1\""},
+      {"--depth-intrinsics cam2=" + big_file, big_file + ": intrinsics: 640x480, but cam2's depth images are 320x240 (" + rig_json + ")"},
+  };
+  const fs::path unwritten = dir_ / "unwritten.json";
+  for (const auto& [args, message] : cases) {
+    r = run("calibrate extrinsics " + capture.string() + " " + args + " --out " + unwritten.string());
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_EQ(r.err, "zipfusion: error: " + message + "\n") << args;
+    EXPECT_FALSE(fs::exists(unwritten)) << args;
+  }
+}
+
 TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   const fs::path boards = dir_ / "boards";
   ASSERT_EQ(run("synth --checkerboard --views 8 --out " + boards.string()).exit_code, 0);
@@ -67,6 +150,12 @@ TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   for (const char* key : {"fx", "fy", "cx", "cy"}) {
     EXPECT_NEAR(j["intrinsics"][key].get<double>(), truth["intrinsics"][key].get<double>(), 0.005 * truth["intrinsics"][key].get<double>()) << key;
   }
+  // The file is what `calibrate extrinsics --intrinsics` reads: the same numbers, exactly.
+  const Intrinsics read_back = read_intrinsics_file(out);
+  EXPECT_EQ(read_back.fx, j["intrinsics"]["fx"].get<double>());
+  EXPECT_EQ(read_back.cy, j["intrinsics"]["cy"].get<double>());
+  EXPECT_EQ(read_back.distortion[1], j["intrinsics"]["distortion"][1].get<double>());
+  EXPECT_EQ(read_back.width, 640);
   ASSERT_EQ(j["views"].size(), 9u);
   for (const auto& view : j["views"]) {
     const bool blank = view["file"].get<std::string>().ends_with("view_blank.png");

@@ -31,6 +31,7 @@ struct ExtrinsicsArgs {
   std::string capture, out;
   ExtrinsicOptions options;
   int threads = 0;
+  std::vector<std::string> color_intrinsics, depth_intrinsics;  // NAME=FILE each
 };
 
 std::vector<std::string> glob_files(const std::string& pattern) {
@@ -65,12 +66,6 @@ BoardOptions parse_board(const std::string& text, double square_m) {
 
 // Fewer views used than this get a warning (Zhang's method needs 3; the principal point needs more).
 constexpr int kFewestViewsAdvised = 10;
-
-nlohmann::json intrinsics_json(const Intrinsics& k) {
-  nlohmann::json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
-  if (k.has_distortion) j["distortion"] = k.distortion;
-  return j;
-}
 
 void run_intrinsics(const IntrinsicsArgs& args) {
   const BoardOptions board = parse_board(args.board, args.square_m);
@@ -118,8 +113,8 @@ void run_intrinsics(const IntrinsicsArgs& args) {
     print_diagnostic("calibrate: warning: only " + std::to_string(used) + " views used; " + std::to_string(kFewestViewsAdvised) +
                      " or more, the board tilted differently in each, pin the principal point down");
   }
-  const nlohmann::json out = {{"format", "zipfusion.intrinsics/1"},
-                              {"intrinsics", intrinsics_json(k)},
+  const nlohmann::json out = {{"format", kIntrinsicsFormat},
+                              {"intrinsics", nlohmann::json::parse(format_intrinsics(k))},
                               {"rms_px", result.rms_px},
                               {"board", {{"inner_columns", board.inner_columns}, {"inner_rows", board.inner_rows}, {"square_m", board.square_m}}},
                               {"views", views},
@@ -129,11 +124,49 @@ void run_intrinsics(const IntrinsicsArgs& args) {
   std::cout << "wrote " << args.out << "\n";
 }
 
+// Puts each NAME=FILE's intrinsics (a `calibrate intrinsics` file) into that camera of the rig,
+// as its colour (`color`) or depth intrinsics. The image size must be the camera's: intrinsics
+// are calibrated at one resolution, and the frames are checked against rig.json's size.
+void apply_intrinsics_files(const std::vector<std::string>& assignments, bool color, const std::string& rig_source, Rig& rig) {
+  const std::string option = color ? "--intrinsics" : "--depth-intrinsics";
+  std::vector<std::string> named;
+  for (const std::string& assignment : assignments) {
+    const size_t equals = assignment.find('=');
+    if (equals == std::string::npos || equals == 0 || equals + 1 == assignment.size()) {
+      throw InvalidInput(option + ": expected CAMERA=FILE (e.g. cam0=cam0.json), got \"" + assignment + "\"");
+    }
+    const std::string name = assignment.substr(0, equals), file = assignment.substr(equals + 1);
+    const int camera = rig.camera_index(name);
+    if (camera < 0) {
+      std::string cameras;
+      for (const CameraModel& c : rig.cameras) cameras += (cameras.empty() ? "" : ", ") + c.name;
+      throw InvalidInput(option + ": no camera \"" + name + "\" in " + rig_source + " (its cameras: " + cameras + ")");
+    }
+    if (std::find(named.begin(), named.end(), name) != named.end()) throw InvalidInput(option + ": camera " + name + " is given twice");
+    named.push_back(name);
+    CameraModel& model = rig.cameras[camera];
+    if (color && !model.has_color()) throw InvalidInput(option + ": camera " + name + " has no colour in " + rig_source);
+    const Intrinsics k = read_intrinsics_file(file);
+    const Intrinsics& current = color ? *model.color_intrinsics : model.depth_intrinsics;
+    if (k.width != current.width || k.height != current.height) {
+      throw InvalidInput(file + ": intrinsics: " + std::to_string(k.width) + "x" + std::to_string(k.height) + ", but " + name + "'s " +
+                         (color ? "colour" : "depth") + " images are " + std::to_string(current.width) + "x" +
+                         std::to_string(current.height) + " (" + rig_source + ")");
+    }
+    (color ? *model.color_intrinsics : model.depth_intrinsics) = k;
+  }
+}
+
 void run_extrinsics(ExtrinsicsArgs& args) {
   args.options.num_threads = args.threads;
   args.options.validate();
   check_output_file(args.out);
   const Capture capture = Capture::open(args.capture);
+  // The rig the wand is calibrated in: the capture's, with the intrinsics given on the command line.
+  Rig rig = capture.rig();
+  const std::string rig_source = (capture.dir() / "rig.json").string();
+  apply_intrinsics_files(args.color_intrinsics, true, rig_source, rig);
+  apply_intrinsics_files(args.depth_intrinsics, false, rig_source, rig);
   const WandObservations observations =
       detect_wand(capture, {}, args.threads, [](int done, int total) { show_progress("detect", done, total); });
   for (const std::string& file : observations.unreadable) print_diagnostic("calibrate: warning: " + file + "; that camera's frame is not used");
@@ -141,7 +174,7 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   // leaves the cameras unconnected): named by the capture.
   const ExtrinsicResult result = [&] {
     try {
-      return calibrate_extrinsics(capture.rig(), observations, args.options);
+      return calibrate_extrinsics(rig, observations, args.options);
     } catch (const InvalidInput& e) {
       const std::string prefix = capture.dir().string() + ": ";
       if (std::string_view(e.what()).starts_with(prefix)) throw;  // already names the capture (its rig.json)
@@ -200,6 +233,11 @@ void add_calibrate_command(CLI::App& app) {
   extr->add_option("--led-distance", ex->options.led_distance_m, "Distance between the LEDs, metres")->capture_default_str();
   extr->add_option("--out", ex->out, "Output rig.json (the capture's rig with calibrated poses)")->required();
   extr->add_option("--min-common-frames", ex->options.min_common_frames, "Frames two cameras must share to be paired")->capture_default_str();
+  extr->add_option("--intrinsics", ex->color_intrinsics,
+                   "CAMERA=FILE: that camera's colour intrinsics from `calibrate intrinsics` (repeat per camera); used for the wand and written to --out")
+      ->allow_extra_args(false);
+  extr->add_option("--depth-intrinsics", ex->depth_intrinsics, "CAMERA=FILE: that camera's depth intrinsics, written to --out (repeat per camera)")
+      ->allow_extra_args(false);
   add_threads_option(extr, ex->threads);
   extr->callback([ex] { run_extrinsics(*ex); });
 }

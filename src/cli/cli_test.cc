@@ -70,6 +70,9 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "cameras: must be in [1, 64]"},
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 0", "views: must be in [1, 10000]"},
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --board 2x2", "board: needs 3 to 100 inner corners each way, got 2x2"},
+      // synth writes only the wands calibrate takes.
+      {"synth --out " + (dir_ / "x").string() + " --wand --led-distance 0.04", "led-distance: must be in (0.05, 5) metres"},
+      {"calibrate extrinsics " + capture + " --led-distance 5 --out " + (dir_ / "x.json").string(), "led-distance: must be in (0.05, 5) metres"},
       // A folder that cannot be made is named as asked for, not as the hidden one it is built in.
       {"synth --out /proc/zf_cli_test_capture", "zipfusion: error: /proc/zf_cli_test_capture: cannot write (", 3},
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},

@@ -5,7 +5,6 @@
 #include <memory>
 
 #include "cli/commands.h"
-#include "zipfusion/calib/intrinsics.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/synth/calib_targets.h"
 #include "zipfusion/synth/fakenect_scene.h"
@@ -85,8 +84,6 @@ void run_synth(SynthArgs& args) {
     if (std::sscanf(args.board.c_str(), "%dx%d%c", &board.inner_columns, &board.inner_rows, &tail) != 2) {
       throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + args.board + "\"");
     }
-    // Only boards that calibrate intrinsics can use.
-    BoardOptions{.inner_columns = board.inner_columns, .inner_rows = board.inner_rows, .square_m = board.square_m}.validate();
     board.intrinsics.width = options.depth_width;
     board.intrinsics.height = options.depth_height;
     board.intrinsics.fx *= options.depth_width / 640.0;

@@ -7,10 +7,12 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "zipfusion/core/calibration_targets.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/image_io.h"
@@ -115,7 +117,11 @@ void require_two_cameras(const Rig& rig, const std::string& rig_file) {
 
 void ExtrinsicOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (!(led_distance_m > 0.01 && led_distance_m < 10)) fail("led-distance", "must be in (0.01, 10) metres");
+  if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
+    char range[64];
+    std::snprintf(range, sizeof range, "must be in (%g, %g) metres", kShortestWandM, kLongestWandM);
+    fail("led-distance", range);
+  }
   if (min_common_frames < 8) fail("min-common-frames", "must be >= 8 (the 8-point algorithm needs 8 correspondences)");
   if (!(ransac_threshold_px > 0 && ransac_threshold_px < 50)) fail("ransac-threshold", "must be in (0, 50) pixels");
   if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac-confidence", "must be in (0, 1)");

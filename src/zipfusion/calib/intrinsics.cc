@@ -6,6 +6,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "zipfusion/core/calibration_targets.h"
 #include "zipfusion/core/error.h"
 
 namespace zipfusion {
@@ -51,10 +52,9 @@ Calibration run_calibration(const std::vector<std::vector<cv::Point2f>>& image_p
 constexpr double kSameViewPx = 1.0;
 
 void BoardOptions::validate() const {
-  // OpenCV's detector needs at least three corners each way; a board of more than 100 is no
-  // printable one (and the bound keeps the corner count far from overflow).
-  if (inner_columns < 3 || inner_rows < 3 || inner_columns > 100 || inner_rows > 100) {
-    throw InvalidInput("board: needs 3 to 100 inner corners each way, got " + std::to_string(inner_columns) + "x" + std::to_string(inner_rows));
+  if (inner_columns < kFewestBoardCorners || inner_rows < kFewestBoardCorners || inner_columns > kMostBoardCorners || inner_rows > kMostBoardCorners) {
+    throw InvalidInput("board: needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) +
+                       " inner corners each way, got " + std::to_string(inner_columns) + "x" + std::to_string(inner_rows));
   }
   if (!(square_m > 0 && square_m < 10)) throw InvalidInput("square: must be in (0, 10) metres");
 }

@@ -189,6 +189,19 @@ std::string matrix_json(const Rigid3d& t) {
   return s + "]";
 }
 
+json parse_json(const std::string& json_text, const std::string& source) {
+  try {
+    return json::parse(json_text);
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double's range
+    throw InvalidInput(source + ": not valid JSON: " + printable_excerpt(e.what(), 300));  // nlohmann quotes the bytes it last read
+  }
+}
+
+void check_format(const Fields& top, const char* expected) {
+  const std::string format = top.string("format");
+  if (format != expected) top.fail("format", "must be \"" + std::string(expected) + "\", got " + Fields::quoted(format));
+}
+
 }  // namespace
 
 int Rig::camera_index(const std::string& name) const {
@@ -199,15 +212,9 @@ int Rig::camera_index(const std::string& name) const {
 }
 
 Rig parse_rig(const std::string& json_text, const std::string& source) {
-  json root;
-  try {
-    root = json::parse(json_text);
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double's range
-    throw InvalidInput(source + ": not valid JSON: " + printable_excerpt(e.what(), 300));  // nlohmann quotes the bytes it last read
-  }
+  const json root = parse_json(json_text, source);
   const Fields top(root, source, "");
-  const std::string format = top.string("format");
-  if (format != kRigFormat) top.fail("format", "must be \"" + std::string(kRigFormat) + "\", got " + Fields::quoted(format));
+  check_format(top, kRigFormat);
 
   Rig rig;
   rig.fps = top.plausible("fps", 0.001, 1000, "frames per second");
@@ -291,6 +298,20 @@ std::string format_rig(const Rig& rig) {
 }
 
 void write_rig(const std::filesystem::path& path, const Rig& rig) { write_file_atomic(path, format_rig(rig)); }
+
+Intrinsics parse_intrinsics_file(const std::string& json_text, const std::string& source) {
+  const json root = parse_json(json_text, source);
+  const Fields top(root, source, "");
+  check_format(top, kIntrinsicsFormat);
+  return parse_intrinsics(top.object("intrinsics"));
+}
+
+Intrinsics read_intrinsics_file(const std::filesystem::path& path) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  return parse_intrinsics_file(std::string(bytes.begin(), bytes.end()), path.string());
+}
+
+std::string format_intrinsics(const Intrinsics& k) { return intrinsics_json(k).dump(); }
 
 std::vector<Rigid3d> world_from_depth_poses(const Rig& rig) {
   std::vector<Rigid3d> poses;

@@ -55,6 +55,17 @@ std::string format_rig(const Rig& rig);
 //! Writes rig.json atomically.
 void write_rig(const std::filesystem::path& path, const Rig& rig);
 
+inline constexpr const char* kIntrinsicsFormat = "zipfusion.intrinsics/1";
+
+//! One camera's intrinsics from a `zipfusion.intrinsics/1` file (what `calibrate intrinsics`
+//! writes): its "intrinsics" object, validated as rig.json's are; the other keys (the per-view
+//! report) are ignored. `source` names the file in error messages.
+Intrinsics parse_intrinsics_file(const std::string& json_text, const std::string& source);
+Intrinsics read_intrinsics_file(const std::filesystem::path& path);
+
+//! Intrinsics as a JSON object, as rig.json writes them; numbers round-trip exactly.
+std::string format_intrinsics(const Intrinsics& k);
+
 //! Every camera's world_from_depth, in rig order.
 std::vector<Rigid3d> world_from_depth_poses(const Rig& rig);
 

@@ -3,12 +3,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
 #include <sstream>
 #include <system_error>
 
+#include "zipfusion/core/calibration_targets.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
@@ -82,7 +84,11 @@ ColorImage to_color(const Image<Eigen::Vector3f>& linear, double noise_sigma, st
 void WandOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (frames < 2 || frames > kMostFrames) fail("frames", "must be in [2, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
-  if (!(led_distance_m > 0.05 && led_distance_m < 5)) fail("led-distance", "must be in (0.05, 5) metres");
+  if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
+    char range[64];
+    std::snprintf(range, sizeof range, "must be in (%g, %g) metres", kShortestWandM, kLongestWandM);
+    fail("led-distance", range);
+  }
   if (!(led_jitter_px >= 0 && led_jitter_px < 10)) fail("led-jitter", "must be in [0, 10) pixels");
   if (!(led_glow_radius_m > 0 && led_glow_radius_m < 0.1)) fail("led-glow-radius", "must be in (0, 0.1) metres");
   if (!(occlusion_probability >= 0 && occlusion_probability < 1)) fail("occlusion-probability", "must be in [0, 1)");
@@ -206,7 +212,10 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
 void CheckerboardOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (views < 1 || views > 10000) fail("views", "must be in [1, 10000]");
-  if (inner_columns < 2 || inner_rows < 2) fail("board", "needs at least 2x2 inner corners");
+  if (inner_columns < kFewestBoardCorners || inner_rows < kFewestBoardCorners || inner_columns > kMostBoardCorners || inner_rows > kMostBoardCorners) {
+    fail("board", "needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) + " inner corners each way, got " +
+                      std::to_string(inner_columns) + "x" + std::to_string(inner_rows));
+  }
   if (!(square_m > 0.001 && square_m < 1)) fail("square", "must be in (0.001, 1) metres");
   if (intrinsics.width < 64 || intrinsics.height < 48 || !(intrinsics.fx > 0 && intrinsics.fy > 0)) fail("intrinsics", "need a positive size and focal lengths");
   const bool automatic = min_distance_m == 0 && max_distance_m == 0;
