@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <numbers>
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_test_util.h"
@@ -132,6 +133,92 @@ TEST_F(CalibrateCli, TakesEachCamerasCalibratedIntrinsicsIntoTheRig) {
     EXPECT_EQ(r.err, "zipfusion: error: " + message + "\n") << args;
     EXPECT_FALSE(fs::exists(unwritten)) << args;
   }
+}
+
+// A rig as a recorder without --rig leaves it: every pose relative to camera 0's optical frame
+// (camera 0 at the identity), and no volume.
+Rig in_camera0_frame(Rig rig) {
+  const Rigid3d camera0_from_world = rig.cameras[0].world_from_depth.inverse();
+  for (CameraModel& model : rig.cameras) model.world_from_depth = camera0_from_world * model.world_from_depth;
+  rig.volume.reset();
+  return rig;
+}
+
+// `calibrate floor` on a rig in camera 0's frame gives back the true world up to where the origin
+// and the x axis go (synth's and samba-4cam's: the ring's centre on the floor, camera 0 at 45°;
+// calibrate floor's: camera 0 on −y, i.e. at −90°): every pose within 5 mm and 0.2° once turned
+// by 135° about z, and the volume over the floor inside the ring.
+void expect_levelled_like_truth(const Rig& levelled, const Rig& truth, const std::string& what) {
+  Rigid3d truth_from_levelled = Rigid3d::Identity();
+  truth_from_levelled.linear() = Eigen::AngleAxisd(135.0 * std::numbers::pi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  ASSERT_EQ(levelled.cameras.size(), truth.cameras.size());
+  for (size_t c = 0; c < truth.cameras.size(); ++c) {
+    const Rigid3d est = truth_from_levelled * levelled.cameras[c].world_from_depth;
+    const Rigid3d& tru = truth.cameras[c].world_from_depth;
+    EXPECT_LT((est.translation() - tru.translation()).norm(), 0.005) << what << " camera " << c;
+    EXPECT_LT(rotation_angle_deg(tru.inverse() * est), 0.2) << what << " camera " << c;
+  }
+}
+
+TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
+  const fs::path capture = dir_ / "ring";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 3 --resolution 320x240").exit_code, 0);
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  write_rig(capture / "rig.json", in_camera0_frame(read_rig(capture / "rig.json")));
+  const fs::path out = dir_ / "level.json";
+  CommandResult r = run("calibrate floor " + capture.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("cam2"), std::string::npos) << r.out;  // the table: a row per camera
+  const Rig levelled = read_rig(out);
+  expect_levelled_like_truth(levelled, truth, "synth");
+  // The ring's radius is 2.5 m: a volume of half that each way, from just above the floor.
+  ASSERT_TRUE(levelled.volume.has_value());
+  EXPECT_NEAR(levelled.volume->max.x(), 1.25, 0.01);
+  EXPECT_NEAR(levelled.volume->min.y(), -1.25, 0.01);
+  EXPECT_DOUBLE_EQ(levelled.volume->min.z(), 0.02);
+  EXPECT_DOUBLE_EQ(levelled.volume->max.z(), 2.2);
+
+  // The volume as asked, or none.
+  r = run("calibrate floor " + capture.string() + " --volume-half-width 0.7 --volume-height 2 --out " + (dir_ / "sized.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Rig sized = read_rig(dir_ / "sized.json");
+  ASSERT_TRUE(sized.volume.has_value());
+  EXPECT_DOUBLE_EQ(sized.volume->max.x(), 0.7);
+  EXPECT_DOUBLE_EQ(sized.volume->max.z(), 2.0);
+  ASSERT_EQ(run("calibrate floor " + capture.string() + " --no-volume --out " + (dir_ / "open.json").string()).exit_code, 0);
+  EXPECT_FALSE(read_rig(dir_ / "open.json").volume.has_value());
+
+  // Without a floor in view nothing is written, and the error says what to do.
+  const fs::path floorless = dir_ / "floorless";
+  ASSERT_EQ(run("synth --out " + floorless.string() + " --frames 1 --cameras 3 --resolution 320x240 --no-floor").exit_code, 0);
+  const fs::path unwritten = dir_ / "unwritten.json";
+  r = run("calibrate floor " + floorless.string() + " --out " + unwritten.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("zipfusion: error: " + floorless.string() + ": no floor found: ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find("frame the floor in some camera's view"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(unwritten));
+  // A --rig of other cameras is named with the field.
+  Rig other = truth;
+  other.cameras[1].name = "side";
+  write_rig(dir_ / "other.json", other);
+  r = run("calibrate floor " + capture.string() + " --rig " + (dir_ / "other.json").string() + " --out " + unwritten.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: " + (dir_ / "other.json").string() + ": cameras[1].name: \"side\" is not the capture's \"cam1\"\n");
+  EXPECT_FALSE(fs::exists(unwritten));
+}
+
+// The same on the real dancer capture (Kinect noise and holes), from its true poses moved into
+// camera 0's frame through --rig.
+TEST_F(CalibrateCli, LevelsSamba4camOnItsFloor) {
+  const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
+  const Rig truth = read_rig(samba / "ground_truth" / "rig.json");
+  const fs::path start = dir_ / "start.json";
+  write_rig(start, in_camera0_frame(truth));
+  const fs::path out = dir_ / "level.json";
+  const CommandResult r = run("calibrate floor " + samba.string() + " --rig " + start.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), truth, "samba-4cam");
 }
 
 TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {

@@ -12,7 +12,9 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/frame_range.h"
 #include "zipfusion/calib/extrinsics.h"
+#include "zipfusion/calib/floor.h"
 #include "zipfusion/calib/intrinsics.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
@@ -32,6 +34,16 @@ struct ExtrinsicsArgs {
   ExtrinsicOptions options;
   int threads = 0;
   std::vector<std::string> color_intrinsics, depth_intrinsics;  // NAME=FILE each
+};
+
+// Frames searched for the floor unless --frames says: the floor does not move, and a few frames
+// see it around a subject who does.
+constexpr int kFloorFrames = 5;
+
+struct FloorArgs {
+  std::string capture, rig, frames, out;  // frames empty: the first kFloorFrames
+  FloorOptions options;
+  bool no_volume = false;
 };
 
 std::vector<std::string> glob_files(const std::string& pattern) {
@@ -212,6 +224,33 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   std::cout << "wrote " << args.out << "\n";
 }
 
+void run_floor(FloorArgs& args) {
+  args.options.set_volume = !args.no_volume;
+  // The range is checked against the capture below; the options' own bounds first.
+  check_output_file(args.out);
+  const Capture capture = Capture::open(args.capture);
+  const FrameRange range =
+      args.frames.empty() ? FrameRange{0, std::min(kFloorFrames, capture.frame_count())} : parse_frame_range(args.frames, capture.frame_count());
+  args.options.first_frame = range.begin;
+  args.options.end_frame = range.end;
+  const Rig rig = args.rig.empty() ? capture.rig() : read_rig(args.rig);
+  const FloorResult result =
+      level_rig_to_floor(capture, rig, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig, args.options);
+
+  std::printf("floor: %d of %d depth points within %.0f mm of it, RMS %.1f mm\n", result.floor_points, result.points,
+              1000 * args.options.inlier_distance_m, 1000 * result.floor_rms_m);
+  std::cout << "camera      floor points  height m  tilt down deg  from the origin m\n";
+  for (const FloorCameraReport& c : result.cameras) {
+    std::printf("%-11s %12d  %8.3f  %13.2f  %17.3f\n", c.name.c_str(), c.floor_points, c.height_m, c.tilt_down_deg, c.distance_m);
+  }
+  if (result.rig.volume) {
+    const Box3d& v = *result.rig.volume;
+    std::printf("volume: x %.2f to %.2f, y %.2f to %.2f, z %.2f to %.2f m\n", v.min.x(), v.max.x(), v.min.y(), v.max.y(), v.min.z(), v.max.z());
+  }
+  write_rig(args.out, result.rig);
+  std::cout << "wrote " << args.out << "\n";
+}
+
 }  // namespace
 
 void add_calibrate_command(CLI::App& app) {
@@ -240,6 +279,19 @@ void add_calibrate_command(CLI::App& app) {
       ->allow_extra_args(false);
   add_threads_option(extr, ex->threads);
   extr->callback([ex] { run_extrinsics(*ex); });
+
+  auto fl = std::make_shared<FloorArgs>();
+  CLI::App* floor = cmd->add_subcommand("floor", "The world frame from the floor in the depth: z up, the floor at z = 0, a capture volume over it");
+  floor->add_option("capture", fl->capture, "Capture whose depth shows the floor (any recording of the rig)")->required();
+  floor->add_option("--rig", fl->rig, "The rig to level (e.g. calibrate extrinsics' output) instead of the capture's");
+  floor->add_option("--frames", fl->frames, "Frames whose depth is searched, A:B (default: the first 5)");
+  floor->add_option("--out", fl->out, "Output rig.json (the rig in the floor's world frame, with the volume)")->required();
+  floor->add_option("--volume-half-width", fl->options.volume_half_width_m, "Volume's x and y half-size, metres (0: 0.5 x the nearest camera's distance)")
+      ->capture_default_str();
+  floor->add_option("--volume-height", fl->options.volume_height_m, "Volume's top above the floor, metres")->capture_default_str();
+  floor->add_flag("--no-volume", fl->no_volume, "Write no capture volume");
+  floor->add_option("--inlier-distance", fl->options.inlier_distance_m, "Depth this close to a plane lies on it, metres")->capture_default_str();
+  floor->callback([fl] { run_floor(*fl); });
 }
 
 }  // namespace zipfusion::cli

@@ -1,0 +1,62 @@
+#pragma once
+//! \file
+//! The world frame from the floor: after the wand (extrinsics.h) the rig's poses are right
+//! relative to each other, but the world is whatever camera 0's pose in the input rig.json made
+//! it (the identity: camera 0's optical frame). The floor, seen in the cameras' depth, fixes the
+//! rest: the world's z axis is the floor's normal (up), z = 0 is the floor, the origin lies under
+//! the cameras' centroid, and camera 0 stands on the −y axis (looking along +y when it faces the
+//! centre). A capture volume over the floor, inside the ring of cameras, goes with it.
+//!
+//! The floor is the plane found by RANSAC over the depth points of all cameras (a few frames):
+//! the one with the most points within `inlier_distance_m` among planes facing up (within
+//! `max_tilt_deg` of the cameras' mean image-up direction: cameras stand upright, so walls are
+//! not candidates) with every camera at least `min_camera_height_m` above it, then refined by a
+//! least-squares fit to its inliers. Thread safety: pure functions.
+
+#include <string>
+#include <vector>
+
+#include "zipfusion/io/capture.h"
+#include "zipfusion/io/rig.h"
+
+namespace zipfusion {
+
+struct FloorOptions {
+  int first_frame = 0, end_frame = 5;  // frames whose depth is searched (end excluded)
+  int pixel_step = 4;                  // every pixel_step-th pixel of every pixel_step-th row
+  double inlier_distance_m = 0.03;     // RANSAC: a point this close to a plane is on it (a Kinect's noise at 3 m is ~2.5 cm)
+  double max_tilt_deg = 45;            // a floor's normal lies within this of the cameras' mean up direction
+  double min_camera_height_m = 0.2;    // every camera stands at least this high above the floor
+  int ransac_iterations = 500;
+  unsigned seed = 1;
+  bool set_volume = true;              // write the capture volume below (else keep none)
+  double volume_half_width_m = 0;      // the volume's x and y half-size; 0: 0.5 × the nearest camera's horizontal distance from the origin
+  double volume_height_m = 2.2;        // the volume spans z from 0.02 m (above the floor) to this
+
+  void validate() const;  // throws InvalidInput naming the field
+};
+
+struct FloorCameraReport {
+  std::string name;
+  double height_m = 0;         // of the depth camera's centre above the floor
+  double tilt_down_deg = 0;    // of its optical axis below the horizontal
+  double distance_m = 0;       // horizontal, from the origin
+  int floor_points = 0;        // of the floor's inliers, this camera's
+};
+
+struct FloorResult {
+  Rig rig;                     // the input rig in the new world frame (relative poses unchanged), with the volume
+  Rigid3d new_from_old = Rigid3d::Identity();  // the world change applied to every pose
+  int points = 0;              // depth points searched
+  int floor_points = 0;        // within inlier_distance_m of the fitted floor
+  double floor_rms_m = 0;      // of those points' distances to it
+  std::vector<FloorCameraReport> cameras;
+};
+
+//! Finds the floor in `capture`'s depth seen through `rig` (the capture's rig, or a calibrated one
+//! with the same cameras and depth sizes, named `rig_source` in errors) and re-expresses the rig in
+//! the floor's world frame. Throws InvalidInput naming the rig when its cameras differ, and naming
+//! the capture when its frames in range hold too little depth or no plane qualifies as the floor.
+FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std::string& rig_source, const FloorOptions& options = {});
+
+}  // namespace zipfusion
