@@ -24,6 +24,8 @@ struct LiveDeviceArgs {
   std::string depth_format = "auto";
   KinectOptions kinect;
   double max_wait_s = -1;            // --max-wait; below 0: 0.25 s for devices, the stall timeout for replays
+  bool replay_paced = false;         // replays at their recorded pace (serve: a live stream), not as fast as read
+  bool replay_loop = false;          // replays again and again (serve --loop)
 };
 
 //! The LiveRig's options for the selected cameras. A device delivers in real time, so a camera
@@ -40,7 +42,7 @@ inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
                   "Kinect v1 devices: all, or comma-separated indices (0,2) or serials, in the rig's camera order (cam0, cam1, ...)");
   cmd->add_option("--replay", args.replay,
                   "Instead of devices: fakenect dumps (fakenect-record folders), one per camera, comma-separated, replayed as fast as "
-                  "they can be read (their recording times group the frames)");
+                  "they can be read (their recording times group the frames; serve plays them at their recorded pace)");
   cmd->add_option("--depth-format", args.depth_format,
                   "Kinect depth: auto (mm where libfreenect registers depth, raw under fakenect), mm, registered (on the colour "
                   "camera's grid) or raw (11-bit disparity, converted by the Kinect v1 model)")
@@ -70,11 +72,16 @@ inline std::vector<std::unique_ptr<LiveCamera>> open_live_cameras(LiveDeviceArgs
   if (args.devices.empty() == args.replay.empty()) throw InvalidInput("--devices, --replay: give exactly one (the cameras to read)");
   std::vector<std::unique_ptr<LiveCamera>> cameras;
   if (!args.replay.empty()) {
-    int c = 0;
+    std::vector<std::filesystem::path> dumps;
     for (const std::string& dir : split_commas(args.replay)) {
       if (dir.empty()) throw InvalidInput("--replay: \"" + args.replay + "\": an empty entry");
-      cameras.push_back(std::make_unique<ReplayCamera>(dir, "cam" + std::to_string(c++)));
+      dumps.emplace_back(dir);
     }
+    ReplayOptions options{.loop = args.replay_loop, .paced = args.replay_paced};
+    // One time line for all dumps (recorded on one PC): paced, the cameras deliver together;
+    // looped, every camera's pass has the same length, so their frames stay grouped.
+    if (options.loop || options.paced) options.timeline = replay_timeline(dumps, options.fps);
+    for (size_t c = 0; c < dumps.size(); ++c) cameras.push_back(std::make_unique<ReplayCamera>(dumps[c], "cam" + std::to_string(c), options));
     return cameras;
   }
   const std::string& f = args.depth_format;

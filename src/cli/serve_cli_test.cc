@@ -131,17 +131,31 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   EXPECT_GT(std::stoi(served[3]), 100) << text;
 }
 
-// serve --live streams live cameras: here a fakenect dump replayed as a camera (as fast as it
-// reads, so the pipeline drops what it cannot keep up with, as it would for a live device).
+// serve --live streams live cameras: here a fakenect dump replayed as a camera, at its recorded
+// pace (as the device delivered it), once or looped for the time asked.
 TEST_F(ServeCli, StreamsLiveCameras) {
   const std::string dump = (dir_ / "dump").string();
   ASSERT_EQ(run("synth --fakenect " + dump + " --frames 8").exit_code, 0);
-  const CommandResult r = run("serve --live --replay " + dump + " --port 0");
+  const auto started = std::chrono::steady_clock::now();
+  CommandResult r = run("serve --live --replay " + dump + " --port 0");
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Eight frames 1/30 s apart are not over before the last one's time.
+  EXPECT_GE(std::chrono::steady_clock::now() - started, std::chrono::milliseconds(7 * 1000 / 30));
   std::smatch served;
   ASSERT_TRUE(std::regex_search(r.out, served, kServedLine)) << r.out;
   EXPECT_EQ(std::stoi(served[1]) + std::stoi(served[2]) + std::stoi(served[3]), 8) << r.out;
-  EXPECT_NE(run("serve --live --replay " + dump + " --loop --port 0").exit_code, 0);
+  // Looped for 2 s: the 8 frames again and again at 30 fps, as a capture with --loop.
+  r = run("serve --live --replay " + dump + " --loop --seconds 2 --port 0");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("looping"), std::string::npos) << r.out;
+  ASSERT_TRUE(std::regex_search(r.out, served, kServedLine)) << r.out;
+  const int handed_over = std::stoi(served[1]) + std::stoi(served[2]) + std::stoi(served[3]);
+  EXPECT_GE(handed_over, 50) << r.out;
+  EXPECT_LE(handed_over, 61) << r.out;
+  // Devices are not a recording: nothing to loop.
+  r = run("serve --live --devices all --loop --port 0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: --loop: only for a capture or --replay\n");
 }
 
 TEST_F(ServeCli, BadOptionsGiveOneLineAndNonZeroExit) {

@@ -125,7 +125,10 @@ void run_serve(ServeArgs& args) {
   args.draco.validate();
   args.server.web_root = viewer_folder(args.web);
   args.server.validate();
-  if (args.input.live && args.loop) throw InvalidInput("--loop: only for a capture");
+  if (args.input.live && args.loop && args.input.devices.replay.empty()) throw InvalidInput("--loop: only for a capture or --replay");
+  // A stream of recordings plays as the devices delivered them, as a capture plays at its rate.
+  args.input.devices.replay_paced = true;
+  args.input.devices.replay_loop = args.loop;
   ReconstructionArgs& r = args.reconstruction;
   Input in;
   open_input(args.input, r.rig, r.register_mode, "serve", in);
@@ -210,7 +213,7 @@ void add_serve_command(CLI::App& app) {
   args->reconstruction.options.depth_level = 1;  // a stream wants a quarter of the triangles (issue 8's budget)
   CLI::App* cmd = app.add_subcommand("serve", "Stream the reconstruction live to a viewer in the browser");
   add_input_options(cmd, args->input);
-  cmd->add_flag("--loop", args->loop, "Play the capture's frames again and again (decoded once, kept in memory)");
+  cmd->add_flag("--loop", args->loop, "Play the capture's frames again and again (decoded once, kept in memory), or the --replay dumps");
   cmd->add_option("--port", args->server.port, "HTTP port for the viewer and the stream (0: any free port)")->capture_default_str();
   cmd->add_option("--bind", args->server.bind_address, "Address to listen on (127.0.0.1: this machine only; 0.0.0.0: every network)")
       ->capture_default_str();

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cmath>
+
 #include <filesystem>
 #include <random>
 
@@ -285,6 +288,71 @@ TEST_F(FakenectDump, ColourIsPairedByTheDevicesClock) {
   EXPECT_TRUE(paired(60000, 0.1));       // 1 ms apart on the device, 0.1 s on a busy host
   EXPECT_TRUE(paired(2399999, 0.04));
   EXPECT_FALSE(paired(2400001, 0.04));
+}
+
+// Looped, a dump plays again and again on one time line: pass k's times are the recording's
+// shifted by k passes (from the first entry to one frame period past the last), so that they
+// keep rising, and colour still pairs with depth by the device clock.
+TEST_F(FakenectDump, ALoopedReplayPlaysAgainWithRisingTimes) {
+  write_dump(3);
+  const ReplayTimeline timeline = replay_timeline({dir_}, 30);
+  const double period = (1700000000.0 + 2 / 30.0 + 0.001) - 1700000000.0 + 1 / 30.0;  // last depth − first colour + a frame
+  EXPECT_NEAR(timeline.first_s, 1700000000.0, 1e-6);
+  EXPECT_NEAR(timeline.period_s, period, 2e-6);
+  ReplayCamera camera(dir_, "cam0", ReplayOptions{.loop = true, .timeline = timeline});
+  const auto pass_ticks = static_cast<std::uint32_t>(std::llround(timeline.period_s * 60e6));
+  for (int k = 0; k < 8; ++k) {
+    const int i = k % 3, pass = k / 3;
+    LiveFrame frame;
+    ASSERT_EQ(camera.read(frame, 0), ReadStatus::kFrame) << k;
+    EXPECT_NEAR(frame.time_s, 1700000000.001 + i / 30.0 + pass * timeline.period_s, 2e-6) << k;
+    EXPECT_EQ(frame.device_timestamp, 1000000u + 2000000u * i + pass * pass_ticks) << k;
+    ASSERT_TRUE(frame.has_color) << k;
+    EXPECT_EQ(frame.color, pattern_rgb(i)) << k;
+  }
+  camera.stop();
+  LiveFrame frame;
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);  // and stays ended
+  EXPECT_EQ(camera.end_reason(), "stopped");
+}
+
+// A loop over a dump without depth ends instead of spinning.
+TEST_F(FakenectDump, ALoopWithoutDepthEnds) {
+  std::vector<FakenectIndexEntry> index = write_dump(2);
+  std::erase_if(index, [](const FakenectIndexEntry& e) { return e.type == 'd'; });
+  write_fakenect_index(dir_, index);
+  ReplayCamera camera(dir_, "cam0", ReplayOptions{.loop = true, .timeline = replay_timeline({dir_}, 30)});
+  LiveFrame frame;
+  EXPECT_EQ(camera.read(frame, 0), ReadStatus::kEnded);
+  EXPECT_EQ(camera.end_reason(), "end of the recording (2 files in INDEX.txt)");
+}
+
+// Paced, a frame recorded at t comes no sooner than t − first after the time line's start, and a
+// read whose timeout ends before then times out and keeps the frame for the next read.
+TEST_F(FakenectDump, APacedReplayDeliversAtTheRecordedTimes) {
+  write_dump(4);
+  ReplayTimeline timeline = replay_timeline({dir_}, 30);
+  timeline.start = std::chrono::steady_clock::now() + std::chrono::seconds(30);  // not due for a long while
+  {
+    ReplayCamera later(dir_, "cam0", ReplayOptions{.paced = true, .timeline = timeline});
+    LiveFrame frame;
+    EXPECT_EQ(later.read(frame, 0.05), ReadStatus::kTimeout);
+    EXPECT_EQ(later.read(frame, 0), ReadStatus::kTimeout);
+    later.stop();  // heard while waiting, not after the 30 s
+    const auto asked = std::chrono::steady_clock::now();
+    EXPECT_EQ(later.read(frame, 60), ReadStatus::kEnded);
+    EXPECT_LT(std::chrono::steady_clock::now() - asked, std::chrono::seconds(20));
+  }
+  timeline.start = std::chrono::steady_clock::now();
+  ReplayCamera camera(dir_, "cam0", ReplayOptions{.paced = true, .timeline = timeline});
+  for (int i = 0; i < 4; ++i) {
+    LiveFrame frame;
+    ASSERT_EQ(camera.read(frame, 10), ReadStatus::kFrame) << i;
+    const double since_start = std::chrono::duration<double>(std::chrono::steady_clock::now() - timeline.start).count();
+    EXPECT_NEAR(frame.time_s, 1700000000.001 + i / 30.0, 2e-6) << i;
+    EXPECT_GE(since_start, frame.time_s - timeline.first_s) << i;
+  }
 }
 
 TEST_F(FakenectDump, StopEndsTheReplay) {

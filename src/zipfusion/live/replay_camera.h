@@ -2,8 +2,9 @@
 //! \file
 //! A fakenect dump replayed as a LiveCamera without libfreenect: several dumps (one per Kinect,
 //! recorded on one PC, so their <seconds> share a clock) make a multi-camera rig for tests and for
-//! recordings made with fakenect-record. Frames come as fast as they can be read (no pacing);
-//! time_s is the dump's <seconds>.
+//! recordings made with fakenect-record. Frames come as fast as they can be read, time_s the
+//! dump's <seconds>; or, for a live stream of recordings, paced as the devices delivered them
+//! and looped (ReplayOptions::paced, loop), all dumps of a rig on one time line.
 //!
 //! Depth is converted from raw 11-bit values by kinect_raw_to_mm (kinect_disparity.h); each
 //! depth frame is paired with the latest colour frame before it in INDEX.txt when the device
@@ -13,6 +14,7 @@
 //! The model is kinect_v1_default_model(). Thread safety: as LiveCamera.
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <mutex>
@@ -24,9 +26,27 @@
 
 namespace zipfusion {
 
+//! The time line the dumps of one rig share: from the earliest <seconds> of any dump to the
+//! latest, plus one frame period (a pass of a loop), and when it started playing.
+struct ReplayTimeline {
+  double first_s = 0;   // recording time, seconds
+  double period_s = 0;  // one pass, seconds
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+};
+
+//! The time line of these dumps (their INDEX.txt; throws as read_fakenect_index), starting now.
+ReplayTimeline replay_timeline(const std::vector<std::filesystem::path>& dumps, double fps);
+
 struct ReplayOptions {
   double fps = 30;                // nominal frame rate of the recording
   double max_color_age_s = 0.04;  // colour stamped at most this far from the depth (the device clock) pairs with it, seconds
+  //! Played again and again: pass k's times (time_s, device_timestamp) shifted by k·timeline.period_s,
+  //! so that they keep rising and the rig's cameras stay grouped.
+  bool loop = false;
+  //! A depth frame recorded at t is delivered at timeline.start + (t − timeline.first_s) (+ the
+  //! passes), as the device delivered it, not as fast as it is read.
+  bool paced = false;
+  ReplayTimeline timeline;        // used by loop and paced: the rig's (replay_timeline)
 
   void validate() const;  // throws InvalidInput naming the field
 };
@@ -45,13 +65,23 @@ class ReplayCamera final : public LiveCamera {
   long dropped_frames() const override { return 0; }
 
  private:
+  ReadStatus read_next(LiveFrame& frame);  // the next depth frame, unpaced
+  ReadStatus end(const std::string& reason);  // ends the stream (the first reason stays)
+  std::chrono::steady_clock::time_point due(double time_s) const;  // when a frame of this (pass's) time is delivered, paced
+
   std::filesystem::path dir_;
   ReplayOptions options_;
   CameraModel model_;
   std::vector<FakenectIndexEntry> entries_;
   size_t next_ = 0;
+  int pass_ = 0;                   // passes of the loop completed
+  int depth_this_pass_ = 0;        // depth frames delivered in this pass (a loop without any would spin)
+  std::uint32_t pass_ticks_ = 0;   // a pass in device clock ticks (mod 2^32, as the clock wraps)
+  bool ended_ = false;
   bool has_color_ = false;
   ColorImage color_;
+  bool has_pending_ = false;       // paced: the next frame, read and waiting for its time
+  LiveFrame pending_;
   std::uint32_t color_timestamp_ = 0;
   std::atomic<bool> stopped_{false};
   mutable std::mutex mutex_;  // guards end_reason_
