@@ -135,48 +135,68 @@ TEST_F(CalibrateCli, TakesEachCamerasCalibratedIntrinsicsIntoTheRig) {
   }
 }
 
-// A rig as a recorder without --rig leaves it: every pose relative to camera 0's optical frame
-// (camera 0 at the identity), and no volume.
-Rig in_camera0_frame(Rig rig) {
-  const Rigid3d camera0_from_world = rig.cameras[0].world_from_depth.inverse();
-  for (CameraModel& model : rig.cameras) model.world_from_depth = camera0_from_world * model.world_from_depth;
+// A levelled rig is the true one (synth's and samba-4cam's world: z up, the floor at 0, the
+// cameras looking at the origin) seen from a world turned about z, where calibrate floor puts
+// camera 0 on −y: one rigid motion from the truth's world to the levelled one that keeps z
+// (within 0.2°) and the floor (5 mm), and, where the cameras' axes meet (`origin_known`), the
+// origin too; every camera within 1 mm and 0.05° of the truth moved by it.
+void expect_levelled_like_truth(const Rig& levelled, const Rig& truth, bool origin_known, const std::string& what) {
+  ASSERT_EQ(levelled.cameras.size(), truth.cameras.size()) << what;
+  const Rigid3d levelled_from_truth = levelled.cameras[0].world_from_depth * truth.cameras[0].world_from_depth.inverse();
+  EXPECT_LT(std::acos(std::min(1.0, (levelled_from_truth.linear() * Eigen::Vector3d::UnitZ()).z())) * 180 / std::numbers::pi, 0.2) << what;
+  EXPECT_LT(std::abs(levelled_from_truth.translation().z()), 0.005) << what;
+  if (origin_known) {
+    EXPECT_LT(levelled_from_truth.translation().norm(), 0.005) << what;
+  }
+  const Eigen::Vector3d camera0 = levelled.cameras[0].world_from_depth.translation();
+  EXPECT_NEAR(camera0.x(), 0, 1e-6) << what;  // on the −y axis
+  EXPECT_LT(camera0.y(), 0) << what;
+  for (size_t c = 0; c < truth.cameras.size(); ++c) {
+    const Rigid3d expected = levelled_from_truth * truth.cameras[c].world_from_depth;
+    const Rigid3d& got = levelled.cameras[c].world_from_depth;
+    EXPECT_LT((got.translation() - expected.translation()).norm(), 0.001) << what << " camera " << c;
+    EXPECT_LT(rotation_angle_deg(expected.inverse() * got), 0.05) << what << " camera " << c;
+  }
+}
+
+// A rig moved as a whole by `moved_from_world` (its volume dropped), as a recorder without --rig
+// or a calibration from another start leaves it.
+Rig moved_rig(Rig rig, const Rigid3d& moved_from_world) {
+  for (CameraModel& model : rig.cameras) model.world_from_depth = moved_from_world * model.world_from_depth;
   rig.volume.reset();
   return rig;
 }
 
-// `calibrate floor` on a rig in camera 0's frame gives back the true world up to where the origin
-// and the x axis go (synth's and samba-4cam's: the ring's centre on the floor, camera 0 at 45°;
-// calibrate floor's: camera 0 on −y, i.e. at −90°): every pose within 5 mm and 0.2° once turned
-// by 135° about z, and the volume over the floor inside the ring.
-void expect_levelled_like_truth(const Rig& levelled, const Rig& truth, const std::string& what) {
-  Rigid3d truth_from_levelled = Rigid3d::Identity();
-  truth_from_levelled.linear() = Eigen::AngleAxisd(135.0 * std::numbers::pi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  ASSERT_EQ(levelled.cameras.size(), truth.cameras.size());
-  for (size_t c = 0; c < truth.cameras.size(); ++c) {
-    const Rigid3d est = truth_from_levelled * levelled.cameras[c].world_from_depth;
-    const Rigid3d& tru = truth.cameras[c].world_from_depth;
-    EXPECT_LT((est.translation() - tru.translation()).norm(), 0.005) << what << " camera " << c;
-    EXPECT_LT(rotation_angle_deg(tru.inverse() * est), 0.2) << what << " camera " << c;
-  }
-}
+Rig in_camera0_frame(const Rig& rig) { return moved_rig(rig, rig.cameras[0].world_from_depth.inverse()); }
 
 TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
   const fs::path capture = dir_ / "ring";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 3 --resolution 320x240").exit_code, 0);
   const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
-  write_rig(capture / "rig.json", in_camera0_frame(read_rig(capture / "rig.json")));
+  write_rig(capture / "rig.json", in_camera0_frame(truth));
   const fs::path out = dir_ / "level.json";
   CommandResult r = run("calibrate floor " + capture.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("cam2"), std::string::npos) << r.out;  // the table: a row per camera
   const Rig levelled = read_rig(out);
-  expect_levelled_like_truth(levelled, truth, "synth");
+  expect_levelled_like_truth(levelled, truth, true, "synth, camera 0's frame");
   // The ring's radius is 2.5 m: a volume of half that each way, from just above the floor.
   ASSERT_TRUE(levelled.volume.has_value());
   EXPECT_NEAR(levelled.volume->max.x(), 1.25, 0.01);
   EXPECT_NEAR(levelled.volume->min.y(), -1.25, 0.01);
   EXPECT_DOUBLE_EQ(levelled.volume->min.z(), 0.02);
   EXPECT_DOUBLE_EQ(levelled.volume->max.z(), 2.2);
+
+  // Any start: the rig turned and moved as a whole, even upside down.
+  for (const auto& [angle, axis] : {std::pair{2.0, Eigen::Vector3d(1, 2, 3)}, std::pair{std::numbers::pi, Eigen::Vector3d(1, 0, 0)}}) {
+    Rigid3d moved = Rigid3d::Identity();
+    moved.linear() = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+    moved.translation() = Eigen::Vector3d(3, -7, 11);
+    write_rig(dir_ / "moved.json", moved_rig(truth, moved));
+    r = run("calibrate floor " + capture.string() + " --rig " + (dir_ / "moved.json").string() + " --out " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expect_levelled_like_truth(read_rig(out), truth, true, "synth, moved");
+  }
 
   // The volume as asked, or none.
   r = run("calibrate floor " + capture.string() + " --volume-half-width 0.7 --volume-height 2 --out " + (dir_ / "sized.json").string());
@@ -194,9 +214,20 @@ TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
   const fs::path unwritten = dir_ / "unwritten.json";
   r = run("calibrate floor " + floorless.string() + " --out " + unwritten.string());
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(line_count(r.err), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("zipfusion: error: " + floorless.string() + ": no floor found: ", 0), 0u) << r.err;
-  EXPECT_NE(r.err.find("frame the floor in some camera's view"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind("zipfusion: error: " + floorless.string() + ": no floor found in frames 0 to 0: ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find("; frame the floor in some camera's view\n"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(unwritten));
+  // Poses that do not fit the depth (every camera turned 90° about its optical axis, its depth
+  // not): each camera's floor lands elsewhere, and the error says why the largest plane is none.
+  Rig sideways = truth;
+  for (CameraModel& model : sideways.cameras) {
+    model.world_from_depth.linear() = model.world_from_depth.linear() * Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  }
+  write_rig(dir_ / "sideways.json", sideways);
+  r = run("calibrate floor " + capture.string() + " --rig " + (dir_ / "sideways.json").string() + " --out " + unwritten.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find(": the largest plane ("), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" is not the floor: "), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(unwritten));
   // A --rig of other cameras is named with the field.
   Rig other = truth;
@@ -206,6 +237,94 @@ TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err, "zipfusion: error: " + (dir_ / "other.json").string() + ": cameras[1].name: \"side\" is not the capture's \"cam1\"\n");
   EXPECT_FALSE(fs::exists(unwritten));
+  // A corrupt depth frame is named and left out.
+  const fs::path depth0 = capture / "cam1" / "depth" / "000000.png";
+  std::vector<std::uint8_t> bytes = read_file_bytes(depth0);
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(depth0, bytes);
+  r = run("calibrate floor " + capture.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("calibrate: warning: " + depth0.string() + ": ", 0), 0u) << r.err;
+  expect_levelled_like_truth(read_rig(out), truth, true, "synth, a corrupt frame");
+}
+
+// Rigs other than a ring: two neighbours of an eight-camera ring (an arc: the origin is still
+// where they look), cameras mounted upside down, and one camera looking steeply down (54°; its
+// origin goes 2 m ahead of it, so only the floor and the tilt are checked).
+TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
+  // Keeps only the cameras `kept` of a synth capture (rig.json, ground truth and folders).
+  auto keep_cameras = [](const fs::path& capture, const std::vector<int>& kept) {
+    for (const fs::path& file : {capture / "rig.json", capture / "ground_truth" / "rig.json"}) {
+      Rig rig = read_rig(file);
+      std::vector<CameraModel> cameras;
+      for (int c : kept) cameras.push_back(rig.cameras[c]);
+      for (size_t c = 0; c < rig.cameras.size(); ++c) {
+        if (std::find(kept.begin(), kept.end(), static_cast<int>(c)) == kept.end()) fs::remove_all(capture / rig.cameras[c].name);
+      }
+      rig.cameras = cameras;
+      write_rig(file, rig);
+    }
+  };
+  const fs::path arc = dir_ / "arc";
+  ASSERT_EQ(run("synth --out " + arc.string() + " --frames 1 --cameras 8 --resolution 320x240").exit_code, 0);
+  keep_cameras(arc, {0, 1});
+  const Rig arc_truth = read_rig(arc / "ground_truth" / "rig.json");
+  write_rig(arc / "rig.json", in_camera0_frame(arc_truth));
+  const fs::path out = dir_ / "level.json";
+  CommandResult r = run("calibrate floor " + arc.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), arc_truth, true, "arc");
+
+  // Cameras 0 and 1 of a ring upside down: their depth turned 180° in the image, their poses
+  // about their optical axes (the principal point is the image's centre, so the pixels map exactly).
+  const fs::path ring = dir_ / "ring";
+  ASSERT_EQ(run("synth --out " + ring.string() + " --frames 1 --cameras 4 --resolution 320x240").exit_code, 0);
+  Rig flipped_truth = read_rig(ring / "ground_truth" / "rig.json");
+  for (int c : {0, 1}) {
+    const fs::path file = ring / flipped_truth.cameras[c].name / "depth" / "000000.png";
+    const DepthImage depth = read_depth_png(file);
+    DepthImage turned(depth.width, depth.height);
+    for (int v = 0; v < depth.height; ++v) {
+      for (int u = 0; u < depth.width; ++u) turned(depth.width - 1 - u, depth.height - 1 - v) = depth(u, v);
+    }
+    write_depth_png(file, turned);
+    Rigid3d& pose = flipped_truth.cameras[c].world_from_depth;
+    pose.linear() = pose.linear() * Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  }
+  write_rig(ring / "ground_truth" / "rig.json", flipped_truth);
+  write_rig(ring / "rig.json", in_camera0_frame(flipped_truth));
+  r = run("calibrate floor " + ring.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), flipped_truth, true, "upside down");
+
+  const fs::path single = dir_ / "single";
+  ASSERT_EQ(run("synth --out " + single.string() + " --frames 2 --cameras 1 --height 3 --radius 1.5 --resolution 320x240").exit_code, 0);
+  const Rig single_truth = read_rig(single / "ground_truth" / "rig.json");
+  write_rig(single / "rig.json", in_camera0_frame(single_truth));
+  r = run("calibrate floor " + single.string() + " --volume-half-width 1 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), single_truth, false, "single camera");
+}
+
+// A table top 2.4 m wide at 0.75 m fills more of the cameras' views than the floor around it
+// (8 536 of 10 562 points within 3 cm of it against 1 870), but the floor lies below it, level
+// and wide enough: it is the floor.
+TEST_F(CalibrateCli, TakesTheFloorUnderATableTop) {
+  const fs::path table = dir_ / "table000000.ply";
+  write_file_atomic(table, std::string("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                                       "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
+                                       "-1.2 -1.2 0.75\n1.2 -1.2 0.75\n1.2 1.2 0.75\n-1.2 1.2 0.75\n"
+                                       "3 0 1 2\n3 0 2 3\n3 0 2 1\n3 0 3 2\n"));  // both faces of the top
+  const fs::path capture = dir_ / "room";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 4 --resolution 320x240 --height 2.2 --subject " +
+                (dir_ / "table%06d.ply").string()).exit_code, 0);
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  write_rig(capture / "rig.json", in_camera0_frame(truth));
+  const fs::path out = dir_ / "level.json";
+  const CommandResult r = run("calibrate floor " + capture.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), truth, true, "table");
 }
 
 // The same on the real dancer capture (Kinect noise and holes), from its true poses moved into
@@ -218,7 +337,11 @@ TEST_F(CalibrateCli, LevelsSamba4camOnItsFloor) {
   const fs::path out = dir_ / "level.json";
   const CommandResult r = run("calibrate floor " + samba.string() + " --rig " + start.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), truth, "samba-4cam");
+  const Rig levelled = read_rig(out);
+  expect_levelled_like_truth(levelled, truth, true, "samba-4cam");
+  // Its own volume, ±1 m in a ring of 2 m.
+  ASSERT_TRUE(levelled.volume.has_value());
+  EXPECT_NEAR(levelled.volume->max.y(), 1.0, 0.01);
 }
 
 TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {

@@ -13,6 +13,7 @@
 
 #include "cli/commands.h"
 #include "cli/frame_range.h"
+#include "cli/rig_poses.h"
 #include "zipfusion/calib/extrinsics.h"
 #include "zipfusion/calib/floor.h"
 #include "zipfusion/calib/intrinsics.h"
@@ -36,12 +37,8 @@ struct ExtrinsicsArgs {
   std::vector<std::string> color_intrinsics, depth_intrinsics;  // NAME=FILE each
 };
 
-// Frames searched for the floor unless --frames says: the floor does not move, and a few frames
-// see it around a subject who does.
-constexpr int kFloorFrames = 5;
-
 struct FloorArgs {
-  std::string capture, rig, frames, out;  // frames empty: the first kFloorFrames
+  std::string capture, rig, frames, out;  // frames empty: FloorOptions' first frames
   FloorOptions options;
   bool no_volume = false;
 };
@@ -226,16 +223,19 @@ void run_extrinsics(ExtrinsicsArgs& args) {
 
 void run_floor(FloorArgs& args) {
   args.options.set_volume = !args.no_volume;
-  // The range is checked against the capture below; the options' own bounds first.
+  args.options.validate();  // its own bounds first; the frames are checked against the capture below
   check_output_file(args.out);
   const Capture capture = Capture::open(args.capture);
-  const FrameRange range =
-      args.frames.empty() ? FrameRange{0, std::min(kFloorFrames, capture.frame_count())} : parse_frame_range(args.frames, capture.frame_count());
+  // The floor does not move, and a few frames see it around a subject who does.
+  const FrameRange range = args.frames.empty() ? FrameRange{0, std::min(FloorOptions{}.end_frame, capture.frame_count())}
+                                               : parse_frame_range(args.frames, capture.frame_count());
   args.options.first_frame = range.begin;
   args.options.end_frame = range.end;
-  const Rig rig = args.rig.empty() ? capture.rig() : read_rig(args.rig);
+  // A calibrated rig (calibrate extrinsics') seen with this capture's recording: its depth unit, sizes.
+  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_calibration_from(capture.rig(), args.rig);
   const FloorResult result =
       level_rig_to_floor(capture, rig, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig, args.options);
+  for (const std::string& file : result.unreadable) print_diagnostic("calibrate: warning: " + file + "; that frame's depth is not used");
 
   std::printf("floor: %d of %d depth points within %.0f mm of it, RMS %.1f mm\n", result.floor_points, result.points,
               1000 * args.options.inlier_distance_m, 1000 * result.floor_rms_m);
@@ -274,9 +274,11 @@ void add_calibrate_command(CLI::App& app) {
   extr->add_option("--min-common-frames", ex->options.min_common_frames, "Frames two cameras must share to be paired")->capture_default_str();
   extr->add_option("--intrinsics", ex->color_intrinsics,
                    "CAMERA=FILE: that camera's colour intrinsics from `calibrate intrinsics` (repeat per camera); used for the wand and written to --out")
-      ->allow_extra_args(false);
+      ->allow_extra_args(false)
+      ->type_name("CAMERA=FILE");
   extr->add_option("--depth-intrinsics", ex->depth_intrinsics, "CAMERA=FILE: that camera's depth intrinsics, written to --out (repeat per camera)")
-      ->allow_extra_args(false);
+      ->allow_extra_args(false)
+      ->type_name("CAMERA=FILE");
   add_threads_option(extr, ex->threads);
   extr->callback([ex] { run_extrinsics(*ex); });
 
@@ -286,10 +288,11 @@ void add_calibrate_command(CLI::App& app) {
   floor->add_option("--rig", fl->rig, "The rig to level (e.g. calibrate extrinsics' output) instead of the capture's");
   floor->add_option("--frames", fl->frames, "Frames whose depth is searched, A:B (default: the first 5)");
   floor->add_option("--out", fl->out, "Output rig.json (the rig in the floor's world frame, with the volume)")->required();
-  floor->add_option("--volume-half-width", fl->options.volume_half_width_m, "Volume's x and y half-size, metres (0: 0.5 x the nearest camera's distance)")
-      ->capture_default_str();
-  floor->add_option("--volume-height", fl->options.volume_height_m, "Volume's top above the floor, metres")->capture_default_str();
-  floor->add_flag("--no-volume", fl->no_volume, "Write no capture volume");
+  CLI::Option* half_width =
+      floor->add_option("--volume-half-width", fl->options.volume_half_width_m, "Volume's x and y half-size, metres (0: 0.5 x the nearest camera's distance)")
+          ->capture_default_str();
+  CLI::Option* height = floor->add_option("--volume-height", fl->options.volume_height_m, "Volume's top above the floor, metres")->capture_default_str();
+  floor->add_flag("--no-volume", fl->no_volume, "Write no capture volume")->excludes(half_width)->excludes(height);
   floor->add_option("--inlier-distance", fl->options.inlier_distance_m, "Depth this close to a plane lies on it, metres")->capture_default_str();
   floor->callback([fl] { run_floor(*fl); });
 }

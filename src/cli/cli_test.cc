@@ -13,6 +13,7 @@
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
+#include "zipfusion/io/rig.h"
 
 namespace zipfusion {
 namespace {
@@ -328,6 +329,35 @@ TEST_F(Cli, ReconstructWritesThroughALinkToANewFolder) {
   EXPECT_TRUE(fs::is_symlink(dir_ / "outlink"));
   EXPECT_TRUE(fs::is_regular_file(dir_ / "runs" / "new" / "000000.ply"));
   EXPECT_TRUE(fs::is_regular_file(dir_ / "runs" / "new" / "stats.json"));
+}
+
+// --rig brings a whole calibration (as calibrate writes it): intrinsics, poses and the volume. A
+// capture whose own rig.json has nominal depth intrinsics and no volume, reconstructed with
+// --rig of the true rig, gives the very mesh the true rig.json gives.
+TEST_F(Cli, ReconstructTakesTheWholeCalibrationFromRig) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --out " + (dir_ / "true").string()).exit_code, 0);
+  const fs::path truth = dir_ / "truth.json";
+  fs::copy_file(capture / "rig.json", truth);
+  Rig nominal = read_rig(truth);
+  nominal.volume.reset();
+  for (CameraModel& model : nominal.cameras) model.depth_intrinsics.fx *= 1.1;
+  write_rig(capture / "rig.json", nominal);
+  CommandResult r = run("reconstruct " + capture.string() + " --rig " + truth.string() + " --out " + (dir_ / "calibrated").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_file_bytes(dir_ / "calibrated" / "000000.ply"), read_file_bytes(dir_ / "true" / "000000.ply"));
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --out " + (dir_ / "nominal").string()).exit_code, 0);
+  EXPECT_NE(read_file_bytes(dir_ / "nominal" / "000000.ply"), read_file_bytes(dir_ / "true" / "000000.ply"));
+  // A calibration of other images is refused, naming the field.
+  Rig other = read_rig(truth);
+  other.cameras[1].color_intrinsics->width = 320;
+  write_rig(dir_ / "other.json", other);
+  r = run("reconstruct " + capture.string() + " --rig " + (dir_ / "other.json").string() + " --out " + (dir_ / "x").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: " + (dir_ / "other.json").string() +
+                       ": cameras[1].color_intrinsics: 320x120, but the capture's images are 160x120\n");
+  EXPECT_FALSE(fs::exists(dir_ / "x"));
 }
 
 TEST_F(Cli, EverySubcommandHasHelp) {

@@ -44,7 +44,7 @@ void run_register(RegisterArgs& args) {
   args.options.validate();
   check_output_file(args.out);
   const Capture capture = Capture::open(args.capture);
-  const Rig start = args.rig.empty() ? capture.rig() : rig_with_poses_from(capture.rig(), args.rig);
+  const Rig start = args.rig.empty() ? capture.rig() : rig_with_calibration_from(capture.rig(), args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
   const std::vector<int> frames = spread_frames(range, args.max_frames);

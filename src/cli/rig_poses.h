@@ -1,5 +1,6 @@
 #pragma once
-// --rig FILE for the CLI: camera poses from another rig.json describing the same cameras.
+// --rig FILE for the CLI: the calibration of the same cameras from another rig.json (what
+// calibrate and register write): poses, intrinsics, color_from_depth, the capture volume.
 
 #include <filesystem>
 #include <string>
@@ -9,22 +10,46 @@
 
 namespace zipfusion::cli {
 
-//! `rig` with the poses of the rig.json at `path`; throws InvalidInput naming that file and the
-//! field when its cameras differ.
-inline Rig rig_with_poses_from(const Rig& rig, const std::filesystem::path& path) {
+//! `rig` (a capture's) with the calibration of the rig.json at `path`: every camera's pose,
+//! intrinsics and color_from_depth, the volume when that file has one, and poses_trusted. What
+//! belongs to the recording stays the capture's (frame rate and count, depth unit, image sizes).
+//! Throws InvalidInput naming that file and the field when its cameras differ: other names or
+//! image sizes, colour where the capture has none (or none where it has), or other depth
+//! distortion (the capture's frames are undistorted by its own rig.json as they are read).
+inline Rig rig_with_calibration_from(const Rig& rig, const std::filesystem::path& path) {
   const Rig other = read_rig(path);
+  const std::string source = path.string();
   if (other.cameras.size() != rig.cameras.size()) {
-    throw InvalidInput(path.string() + ": cameras: has " + std::to_string(other.cameras.size()) + " cameras, the capture has " +
+    throw InvalidInput(source + ": cameras: has " + std::to_string(other.cameras.size()) + " cameras, the capture has " +
                        std::to_string(rig.cameras.size()));
   }
   Rig result = rig;
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
-    if (other.cameras[c].name != rig.cameras[c].name) {
-      throw InvalidInput(path.string() + ": cameras[" + std::to_string(c) + "].name: \"" + other.cameras[c].name + "\" is not the capture's \"" +
-                         rig.cameras[c].name + "\"");
+    const CameraModel &ours = rig.cameras[c], &theirs = other.cameras[c];
+    const std::string field = source + ": cameras[" + std::to_string(c) + "].";
+    if (theirs.name != ours.name) throw InvalidInput(field + "name: \"" + theirs.name + "\" is not the capture's \"" + ours.name + "\"");
+    auto same_size = [&](const Intrinsics& a, const Intrinsics& b, const std::string& key) {
+      if (a.width != b.width || a.height != b.height) {
+        throw InvalidInput(field + key + ": " + std::to_string(a.width) + "x" + std::to_string(a.height) + ", but the capture's images are " +
+                           std::to_string(b.width) + "x" + std::to_string(b.height));
+      }
+    };
+    same_size(theirs.depth_intrinsics, ours.depth_intrinsics, "depth_intrinsics");
+    if (theirs.depth_intrinsics.has_distortion != ours.depth_intrinsics.has_distortion ||
+        theirs.depth_intrinsics.distortion != ours.depth_intrinsics.distortion) {
+      throw InvalidInput(field + "depth_intrinsics.distortion: differs from the capture's (its depth is undistorted as its own rig.json says)");
     }
-    result.cameras[c].world_from_depth = other.cameras[c].world_from_depth;
+    if (theirs.has_color() != ours.has_color()) {
+      throw InvalidInput(field + "color_intrinsics: " + (ours.has_color() ? "missing, but the capture's camera has colour" : "given, but the capture's camera has no colour"));
+    }
+    if (ours.has_color()) same_size(*theirs.color_intrinsics, *ours.color_intrinsics, "color_intrinsics");
+    CameraModel& model = result.cameras[c];
+    model.depth_intrinsics = theirs.depth_intrinsics;
+    model.color_intrinsics = theirs.color_intrinsics;
+    model.color_from_depth = theirs.color_from_depth;
+    model.world_from_depth = theirs.world_from_depth;
   }
+  if (other.volume) result.volume = other.volume;
   result.poses_trusted = other.poses_trusted;
   return result;
 }

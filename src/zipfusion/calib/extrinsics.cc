@@ -118,9 +118,7 @@ void require_two_cameras(const Rig& rig, const std::string& rig_file) {
 void ExtrinsicOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
-    char range[64];
-    std::snprintf(range, sizeof range, "must be in (%g, %g) metres", kShortestWandM, kLongestWandM);
-    fail("led-distance", range);
+    fail("led-distance", wand_distance_rule());
   }
   if (min_common_frames < 8) fail("min-common-frames", "must be >= 8 (the 8-point algorithm needs 8 correspondences)");
   if (!(ransac_threshold_px > 0 && ransac_threshold_px < 50)) fail("ransac-threshold", "must be in (0, 50) pixels");

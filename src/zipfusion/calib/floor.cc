@@ -15,11 +15,20 @@ namespace {
 // Fewer floor points than this is no floor: a plane through a few stray points would set the
 // world's tilt. A floor seen by one camera at 640×480 every 4th pixel gives thousands.
 constexpr int kFewestFloorPoints = 500;
-// The depth points searched, at most (more are thinned evenly): RANSAC's cost is iterations × points.
+// The depth points searched, at most (more are thinned evenly): RANSAC's cost is iterations ×
+// points. Gathered, at most four times as many (the pixel step grows with the frames asked).
 constexpr size_t kMostPoints = 300000;
-// With the cameras' centroid this close to camera 0 (one camera, or all in one place), the
-// origin is put this far ahead of camera 0 instead, where it looks.
-constexpr double kSameSpotM = 0.2;
+// A level plane below the best one with at least this share of its points is preferred: the
+// floor under a table top that fills the view.
+constexpr double kLowerPlaneShare = 0.2;
+constexpr double kParallelDeg = 10;
+// Where the cameras look: the optical axes, laid flat on the floor, meet in a point when they
+// spread over more than about 37° (two axes: 1 − cos 37° = 0.2 per axis); an axis flatter than
+// this (a camera looking nearly straight down) counts as the point below the camera.
+constexpr double kSpreadPerAxis = 0.1;
+constexpr double kSteepAxis = 0.2;  // horizontal length of the unit optical axis
+// Otherwise (one camera, or cameras looking the same way) the origin goes this far ahead of
+// the cameras, where a subject stands.
 constexpr double kOriginAheadM = 2.0;
 // The volume starts this high above the floor, so the floor stays background (synth's choice).
 constexpr double kVolumeFloorClearanceM = 0.02;
@@ -28,30 +37,43 @@ constexpr double kVolumeFloorClearanceM = 0.02;
 constexpr double kVolumeShareOfRing = 0.5;
 
 struct Plane {
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit, pointing up
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
   double offset = 0;                                  // signed distance of p: normal · p + offset
   double distance(const Eigen::Vector3d& p) const { return normal.dot(p) + offset; }
+  void flip() {
+    normal = -normal;
+    offset = -offset;
+  }
 };
 
 struct DepthPoints {
   std::vector<Eigen::Vector3d> points;
   std::vector<int> camera;
+  std::vector<std::string> unreadable;
 };
 
 DepthPoints gather_depth_points(const Capture& capture, const Rig& rig, const FloorOptions& options) {
   DepthPoints out;
   const int end = std::min(options.end_frame, capture.frame_count());
+  // The frames' pixels, at most 4·kMostPoints of them: the step grows with the frames.
+  double pixels = 0;
+  for (const CameraModel& model : rig.cameras) pixels += static_cast<double>(model.depth_intrinsics.width) * model.depth_intrinsics.height;
+  pixels *= end - options.first_frame;
+  int step = options.pixel_step;
+  while (pixels / (static_cast<double>(step) * step) > 4.0 * kMostPoints) ++step;
   for (int frame = options.first_frame; frame < end; ++frame) {
     for (int c = 0; c < capture.camera_count(); ++c) {
       const CameraFrame image = capture.load_camera_frame(frame, c);
+      out.unreadable.insert(out.unreadable.end(), image.unreadable.begin(), image.unreadable.end());
       if (!image.has_depth) continue;
       const CameraModel& model = rig.cameras[c];
-      for (int v = 0; v < image.depth.height; v += options.pixel_step) {
-        for (int u = 0; u < image.depth.width; u += options.pixel_step) {
+      for (int v = 0; v < image.depth.height; v += step) {
+        for (int u = 0; u < image.depth.width; u += step) {
           const unsigned short raw = image.depth(u, v);
           if (raw == 0) continue;
-          const double z = raw * rig.depth_unit_m;
-          out.points.push_back(model.world_from_depth * unproject(model.depth_intrinsics, static_cast<float>(u), static_cast<float>(v), static_cast<float>(z)).cast<double>());
+          // The frame's depth unit is the capture's, whatever rig it is seen through.
+          const auto z = static_cast<float>(raw * capture.rig().depth_unit_m);
+          out.points.push_back(model.world_from_depth * unproject(model.depth_intrinsics, static_cast<float>(u), static_cast<float>(v), z).cast<double>());
           out.camera.push_back(c);
         }
       }
@@ -59,18 +81,18 @@ DepthPoints gather_depth_points(const Capture& capture, const Rig& rig, const Fl
   }
   if (out.points.size() > kMostPoints) {
     const double stride = static_cast<double>(out.points.size()) / kMostPoints;
-    DepthPoints thinned;
     for (size_t i = 0; i < kMostPoints; ++i) {
-      const size_t k = static_cast<size_t>(i * stride);
-      thinned.points.push_back(out.points[k]);
-      thinned.camera.push_back(out.camera[k]);
+      const auto k = static_cast<size_t>(i * stride);
+      out.points[i] = out.points[k];
+      out.camera[i] = out.camera[k];
     }
-    out = std::move(thinned);
+    out.points.resize(kMostPoints);
+    out.camera.resize(kMostPoints);
   }
   return out;
 }
 
-// The least-squares plane through the points within `distance` of `plane`, normal kept up.
+// The least-squares plane through the points within `distance` of `plane`, facing as it does.
 Plane refit(const std::vector<Eigen::Vector3d>& points, const Plane& plane, double distance) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
@@ -88,6 +110,99 @@ Plane refit(const std::vector<Eigen::Vector3d>& points, const Plane& plane, doub
   Eigen::Vector3d normal = solver.eigenvectors().col(0);  // smallest eigenvalue first
   if (normal.dot(plane.normal) < 0) normal = -normal;
   return {normal, -normal.dot(centroid)};
+}
+
+// Why `plane` cannot be the floor, or empty when it can; a plane that can is turned to face the
+// cameras (its normal is then up). Every camera must stand on one side of it, at least
+// min_camera_height_m away, and its normal lie within max_tilt_deg of the cameras' up axis.
+std::string floor_problem(Plane& plane, const Rig& rig, const Eigen::Vector3d& up_axis, const FloorOptions& options) {
+  double sum = 0;
+  for (const CameraModel& model : rig.cameras) sum += plane.distance(model.world_from_depth.translation());
+  if (sum < 0) plane.flip();
+  double lowest = std::numeric_limits<double>::infinity();
+  size_t lowest_camera = 0;
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    const double d = plane.distance(rig.cameras[c].world_from_depth.translation());
+    if (d < lowest) lowest = d, lowest_camera = c;
+  }
+  char text[200];
+  if (lowest < 0) {
+    std::snprintf(text, sizeof text, "the cameras stand on both sides of it (%s %.2f m below)", rig.cameras[lowest_camera].name.c_str(), -lowest);
+    return text;
+  }
+  if (lowest < options.min_camera_height_m) {
+    std::snprintf(text, sizeof text, "%s is only %.2f m above it (every camera must stand at least %.2f m above the floor)",
+                  rig.cameras[lowest_camera].name.c_str(), lowest, options.min_camera_height_m);
+    return text;
+  }
+  const double tilt_deg = std::acos(std::min(1.0, std::abs(plane.normal.dot(up_axis)))) * 180 / std::numbers::pi;
+  if (tilt_deg > options.max_tilt_deg) {
+    std::snprintf(text, sizeof text, "it is %.0f degrees from the cameras' up direction (at most %.0f: cameras turned on their sides?)",
+                  tilt_deg, options.max_tilt_deg);
+    return text;
+  }
+  return {};
+}
+
+struct PlaneCount {
+  Plane plane;
+  int count = 0;
+};
+
+// RANSAC over the points of `indices`: the plane with most points within the inlier distance
+// among those `accept` takes (it may turn them).
+template <typename Accept>
+PlaneCount find_plane(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices, const FloorOptions& options,
+                      std::mt19937& rng, Accept&& accept) {
+  PlaneCount best;
+  if (indices.size() < 3) return best;
+  std::uniform_int_distribution<size_t> pick(0, indices.size() - 1);
+  for (int iteration = 0; iteration < options.ransac_iterations; ++iteration) {
+    const Eigen::Vector3d& a = points[indices[pick(rng)]];
+    const Eigen::Vector3d& b = points[indices[pick(rng)]];
+    const Eigen::Vector3d& c = points[indices[pick(rng)]];
+    const Eigen::Vector3d normal = (b - a).cross(c - a);
+    if (normal.norm() < 1e-9) continue;
+    Plane plane{normal.normalized(), 0};
+    plane.offset = -plane.normal.dot(a);
+    if (!accept(plane)) continue;
+    int count = 0;
+    for (int i : indices) count += std::abs(plane.distance(points[i])) < options.inlier_distance_m;
+    if (count > best.count) best = {plane, count};
+  }
+  return best;
+}
+
+// Where the cameras look, on the floor: the point nearest to all optical axes laid flat (in the
+// floor's coordinates e1, e2), or, where they do not meet, kOriginAheadM ahead of the cameras.
+Eigen::Vector3d looked_at_on_floor(const Rig& rig, const Plane& floor) {
+  const Eigen::Vector3d& z = floor.normal;
+  const Eigen::Vector3d e1 = z.unitOrthogonal(), e2 = z.cross(e1);
+  auto flat = [&](const Eigen::Vector3d& v) { return Eigen::Vector2d(e1.dot(v), e2.dot(v)); };
+  Eigen::Matrix2d normal_matrix = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero(), centroid = Eigen::Vector2d::Zero(), ahead = Eigen::Vector2d::Zero();
+  for (const CameraModel& model : rig.cameras) {
+    const Eigen::Vector2d centre = flat(model.world_from_depth.translation());
+    const Eigen::Vector2d axis = flat(model.world_from_depth.linear() * Eigen::Vector3d::UnitZ());
+    centroid += centre;
+    // A camera looking nearly straight down looks at the floor below it: a point, not a line.
+    const Eigen::Matrix2d weight = axis.norm() < kSteepAxis ? Eigen::Matrix2d::Identity()
+                                                            : Eigen::Matrix2d(Eigen::Matrix2d::Identity() - axis.normalized() * axis.normalized().transpose());
+    normal_matrix += weight;
+    rhs += weight * centre;
+    if (axis.norm() >= kSteepAxis) ahead += axis.normalized();
+  }
+  const double cameras = static_cast<double>(rig.cameras.size());
+  centroid /= cameras;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(normal_matrix);
+  Eigen::Vector2d point;
+  if (solver.eigenvalues()(0) >= kSpreadPerAxis * cameras) {
+    point = normal_matrix.ldlt().solve(rhs);
+  } else {
+    point = centroid + (ahead.norm() > 1e-6 ? Eigen::Vector2d(kOriginAheadM * ahead.normalized()) : Eigen::Vector2d::Zero());
+  }
+  // On the floor: the plane's point nearest the origin, moved within it.
+  return -floor.offset * z + point.x() * e1 + point.y() * e2;
 }
 
 }  // namespace
@@ -127,76 +242,72 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
     throw InvalidInput(source + ": frames: the capture has " + std::to_string(capture.frame_count()) + " frames");
   }
 
-  // Up, as the cameras see it: the mean of their image-up directions (−y of the depth camera).
-  Eigen::Vector3d up = Eigen::Vector3d::Zero();
-  for (const CameraModel& model : rig.cameras) up += model.world_from_depth.linear() * -Eigen::Vector3d::UnitY();
-  if (up.norm() < 0.1 * static_cast<double>(rig.cameras.size())) {
-    throw InvalidInput(source + ": the cameras do not agree on which way is up (turned on their sides or upside down): no floor can be told from a wall");
+  // The cameras' up axis, sign aside: the principal direction of their image-up directions (−y
+  // of each depth camera), so that cameras mounted upside down agree with upright ones and
+  // downward tilts around a ring cancel.
+  Eigen::Matrix3d up_scatter = Eigen::Matrix3d::Zero();
+  for (const CameraModel& model : rig.cameras) {
+    const Eigen::Vector3d up = model.world_from_depth.linear() * -Eigen::Vector3d::UnitY();
+    up_scatter += up * up.transpose();
   }
-  up.normalize();
+  const Eigen::Vector3d up_axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(up_scatter).eigenvectors().col(2);  // largest
 
   const DepthPoints depth = gather_depth_points(capture, rig, options);
   FloorResult result;
+  result.unreadable = depth.unreadable;
   result.points = static_cast<int>(depth.points.size());
+  const int last_frame = std::min(options.end_frame, capture.frame_count()) - 1;
   if (depth.points.size() < static_cast<size_t>(kFewestFloorPoints)) {
-    throw InvalidInput(source + ": too little depth in frames " + std::to_string(options.first_frame) + " to " +
-                       std::to_string(std::min(options.end_frame, capture.frame_count()) - 1) + " to find the floor (" +
-                       std::to_string(depth.points.size()) + " points)");
+    throw InvalidInput(source + ": too little depth in frames " + std::to_string(options.first_frame) + " to " + std::to_string(last_frame) +
+                       " to find the floor (" + std::to_string(depth.points.size()) + " points)");
   }
 
-  // RANSAC over planes that face up and lie below every camera.
-  const double cos_max_tilt = std::cos(options.max_tilt_deg * std::numbers::pi / 180);
+  // RANSAC over the planes that can be the floor; then, below the best, a level plane with a
+  // fair share of its points is preferred (the floor under a table top), as long as there is one.
   std::mt19937 rng(options.seed);
-  std::uniform_int_distribution<size_t> pick(0, depth.points.size() - 1);
-  Plane best;
-  int best_count = 0;
-  for (int iteration = 0; iteration < options.ransac_iterations; ++iteration) {
-    const Eigen::Vector3d& a = depth.points[pick(rng)];
-    const Eigen::Vector3d& b = depth.points[pick(rng)];
-    const Eigen::Vector3d& c = depth.points[pick(rng)];
-    Eigen::Vector3d normal = (b - a).cross(c - a);
-    if (normal.norm() < 1e-9) continue;
-    normal.normalize();
-    if (normal.dot(up) < 0) normal = -normal;
-    if (normal.dot(up) < cos_max_tilt) continue;
-    const Plane plane{normal, -normal.dot(a)};
-    const bool below_cameras = std::all_of(rig.cameras.begin(), rig.cameras.end(), [&](const CameraModel& m) {
-      return plane.distance(m.world_from_depth.translation()) >= options.min_camera_height_m;
-    });
-    if (!below_cameras) continue;
-    int count = 0;
-    for (const Eigen::Vector3d& p : depth.points) count += std::abs(plane.distance(p)) < options.inlier_distance_m;
-    if (count > best_count) {
-      best_count = count;
-      best = plane;
+  auto can_be_floor = [&](Plane& plane) { return floor_problem(plane, rig, up_axis, options).empty(); };
+  std::vector<int> all(depth.points.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  PlaneCount best = find_plane(depth.points, all, options, rng, can_be_floor);
+  if (best.count < kFewestFloorPoints) {
+    // Say why the largest plane in view is not the floor.
+    PlaneCount largest = find_plane(depth.points, all, options, rng, [](Plane&) { return true; });
+    const std::string why = largest.count >= kFewestFloorPoints ? floor_problem(largest.plane, rig, up_axis, options) : "";
+    throw InvalidInput(source + ": no floor found in frames " + std::to_string(options.first_frame) + " to " + std::to_string(last_frame) +
+                       (why.empty() ? ": no plane holds " + std::to_string(kFewestFloorPoints) + " depth points"
+                                    : ": the largest plane (" + std::to_string(largest.count) + " of " + std::to_string(depth.points.size()) +
+                                          " depth points) is not the floor: " + why) +
+                       "; frame the floor in some camera's view");
+  }
+  const double cos_parallel = std::cos(kParallelDeg * std::numbers::pi / 180);
+  while (true) {
+    std::vector<int> below;
+    for (int i : all) {
+      if (best.plane.distance(depth.points[i]) < -options.inlier_distance_m) below.push_back(i);
     }
+    const PlaneCount lower = find_plane(depth.points, below, options, rng, [&](Plane& plane) {
+      return can_be_floor(plane) && plane.normal.dot(best.plane.normal) >= cos_parallel;
+    });
+    if (lower.count < std::max<double>(kFewestFloorPoints, kLowerPlaneShare * best.count)) break;
+    best = lower;
   }
-  if (best_count < kFewestFloorPoints) {
-    throw InvalidInput(source + ": no floor found: no plane within " + std::to_string(static_cast<int>(options.max_tilt_deg)) +
-                       " degrees of level, below every camera, holds " + std::to_string(kFewestFloorPoints) + " depth points (the best: " +
-                       std::to_string(best_count) + " of " + std::to_string(depth.points.size()) + "); frame the floor in some camera's view");
-  }
-  // Least squares on the inliers, twice (the second with the refined plane's inliers).
-  Plane floor = refit(depth.points, best, options.inlier_distance_m);
+  // Least squares on the inliers, twice (the second with the refined plane's inliers); the fit
+  // must still be a floor.
+  Plane floor = refit(depth.points, best.plane, options.inlier_distance_m);
   floor = refit(depth.points, floor, options.inlier_distance_m);
+  if (const std::string why = floor_problem(floor, rig, up_axis, options); !why.empty()) {
+    throw InvalidInput(source + ": the floor's least-squares fit is not a floor: " + why + "; try a smaller --inlier-distance");
+  }
 
-  // The new world: z up from the floor; the origin under the cameras' centroid; camera 0 on −y.
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const CameraModel& model : rig.cameras) centroid += model.world_from_depth.translation();
-  centroid /= static_cast<double>(rig.cameras.size());
+  // The new world: z up from the floor, the origin where the cameras look, camera 0 on −y.
   const Eigen::Vector3d& z_axis = floor.normal;
   auto horizontal = [&](const Eigen::Vector3d& v) -> Eigen::Vector3d { return v - v.dot(z_axis) * z_axis; };
-  Eigen::Vector3d origin = centroid - floor.distance(centroid) * z_axis;
+  const Eigen::Vector3d origin = looked_at_on_floor(rig, floor);
   const Rigid3d& camera0 = rig.cameras[0].world_from_depth;
   Eigen::Vector3d y_axis = -horizontal(camera0.translation() - origin);
-  if (y_axis.norm() < kSameSpotM) {
-    const Eigen::Vector3d ahead = horizontal(camera0.linear() * Eigen::Vector3d::UnitZ());
-    if (ahead.norm() < 1e-6) throw InvalidInput(source + ": " + rig.cameras[0].name + " looks straight down: no direction to put the origin in");
-    y_axis = ahead.normalized();
-    origin += kOriginAheadM * y_axis;
-  } else {
-    y_axis.normalize();
-  }
+  if (y_axis.norm() < 0.01) y_axis = horizontal(camera0.linear() * Eigen::Vector3d::UnitZ());  // camera 0 right above it
+  if (y_axis.norm() < 1e-6) y_axis = z_axis.unitOrthogonal();  // and looking straight down
+  y_axis.normalize();
   const Eigen::Vector3d x_axis = y_axis.cross(z_axis);
   Eigen::Matrix3d new_from_old_rotation;
   new_from_old_rotation.row(0) = x_axis.transpose();

@@ -3,15 +3,18 @@
 //! The world frame from the floor: after the wand (extrinsics.h) the rig's poses are right
 //! relative to each other, but the world is whatever camera 0's pose in the input rig.json made
 //! it (the identity: camera 0's optical frame). The floor, seen in the cameras' depth, fixes the
-//! rest: the world's z axis is the floor's normal (up), z = 0 is the floor, the origin lies under
-//! the cameras' centroid, and camera 0 stands on the −y axis (looking along +y when it faces the
-//! centre). A capture volume over the floor, inside the ring of cameras, goes with it.
+//! rest: the world's z axis is the floor's normal (up), z = 0 is the floor, the origin is the
+//! point on the floor the cameras look at (where their optical axes, laid flat, meet; for one
+//! camera, or cameras looking one way, 2 m ahead of them), and camera 0 stands on the −y axis. A
+//! capture volume over the floor around the origin goes with it.
 //!
 //! The floor is the plane found by RANSAC over the depth points of all cameras (a few frames):
-//! the one with the most points within `inlier_distance_m` among planes facing up (within
-//! `max_tilt_deg` of the cameras' mean image-up direction: cameras stand upright, so walls are
-//! not candidates) with every camera at least `min_camera_height_m` above it, then refined by a
-//! least-squares fit to its inliers. Thread safety: pure functions.
+//! the one with the most points within `inlier_distance_m` among planes that every camera
+//! stands at least `min_camera_height_m` above, on one side, and whose normal lies within
+//! `max_tilt_deg` of the cameras' up axis (the principal direction of their image-up
+//! directions, sign aside: upright and upside-down cameras agree); a level plane below it with a
+//! fifth of its points is preferred (a table top above the floor); the pick is refitted by least
+//! squares to its inliers and checked again. Thread safety: pure functions.
 
 #include <string>
 #include <vector>
@@ -25,10 +28,10 @@ struct FloorOptions {
   int first_frame = 0, end_frame = 5;  // frames whose depth is searched (end excluded)
   int pixel_step = 4;                  // every pixel_step-th pixel of every pixel_step-th row
   double inlier_distance_m = 0.03;     // RANSAC: a point this close to a plane is on it (a Kinect's noise at 3 m is ~2.5 cm)
-  double max_tilt_deg = 45;            // a floor's normal lies within this of the cameras' mean up direction
+  double max_tilt_deg = 60;            // a floor's normal lies within this of the cameras' up axis (degrees)
   double min_camera_height_m = 0.2;    // every camera stands at least this high above the floor
-  int ransac_iterations = 500;
-  unsigned seed = 1;
+  int ransac_iterations = 500;        // planes tried
+  unsigned seed = 1;                  // of RANSAC's draws (the result is the same for the same input)
   bool set_volume = true;              // write the capture volume below (else keep none)
   double volume_half_width_m = 0;      // the volume's x and y half-size; 0: 0.5 × the nearest camera's horizontal distance from the origin
   double volume_height_m = 2.2;        // the volume spans z from 0.02 m (above the floor) to this
@@ -51,6 +54,7 @@ struct FloorResult {
   int floor_points = 0;        // within inlier_distance_m of the fitted floor
   double floor_rms_m = 0;      // of those points' distances to it
   std::vector<FloorCameraReport> cameras;
+  std::vector<std::string> unreadable;  // "FILE: reason" for each depth file that could not be read (its frame not used)
 };
 
 //! Finds the floor in `capture`'s depth seen through `rig` (the capture's rig, or a calibrated one

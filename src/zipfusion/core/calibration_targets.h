@@ -3,6 +3,9 @@
 //! What a calibration target may be: shared by what calibrates from targets (calib) and what
 //! renders them (synth), so that every target synth writes can be calibrated from.
 
+#include <cstdio>
+#include <string>
+
 namespace zipfusion {
 
 //! Inner corners of a checkerboard, each way: OpenCV's detector needs three; a board of more
@@ -15,5 +18,12 @@ inline constexpr int kMostBoardCorners = 100;
 //! is longer than the volume it is waved through.
 inline constexpr double kShortestWandM = 0.05;
 inline constexpr double kLongestWandM = 5.0;
+
+//! What an LED distance outside (kShortestWandM, kLongestWandM) is told.
+inline std::string wand_distance_rule() {
+  char text[64];
+  std::snprintf(text, sizeof text, "must be in (%g, %g) metres", kShortestWandM, kLongestWandM);
+  return text;
+}
 
 }  // namespace zipfusion

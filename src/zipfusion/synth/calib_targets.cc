@@ -85,9 +85,7 @@ void WandOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (frames < 2 || frames > kMostFrames) fail("frames", "must be in [2, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
   if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
-    char range[64];
-    std::snprintf(range, sizeof range, "must be in (%g, %g) metres", kShortestWandM, kLongestWandM);
-    fail("led-distance", range);
+    fail("led-distance", wand_distance_rule());
   }
   if (!(led_jitter_px >= 0 && led_jitter_px < 10)) fail("led-jitter", "must be in [0, 10) pixels");
   if (!(led_glow_radius_m > 0 && led_glow_radius_m < 0.1)) fail("led-glow-radius", "must be in (0, 0.1) metres");
