@@ -225,7 +225,7 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
   options.validate();
   const std::string source = capture.dir().string();
   if (rig.cameras.size() != static_cast<size_t>(capture.camera_count())) {
-    throw InvalidInput(rig_source + ": cameras: has " + std::to_string(rig.cameras.size()) + " cameras, the capture " +
+    throw InvalidInput(rig_source + ": cameras: has " + std::to_string(rig.cameras.size()) + " cameras, the capture has " +
                        std::to_string(capture.camera_count()));
   }
   for (int c = 0; c < capture.camera_count(); ++c) {
