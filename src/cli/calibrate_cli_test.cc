@@ -402,6 +402,12 @@ TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {
     EXPECT_EQ(r.out, "") << args;
     EXPECT_EQ(r.err, "zipfusion: error: " + unwritable + ": cannot write: folder " + (dir_ / "no").string() + " does not exist\n") << args;
   }
+  // A folder that looks writable but takes no file (/proc, even for root) is found before the
+  // work too: a probe file is made there first.
+  r = run("calibrate floor " + capture.string() + " --out /proc/zf_calibrate_cli_test.json");
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err.rfind("zipfusion: error: /proc/zf_calibrate_cli_test.json: cannot write: folder /proc: ", 0), 0u) << r.err;
 }
 
 }  // namespace

@@ -4,7 +4,11 @@
 #include <random>
 #include <string>
 #include <system_error>
+#include <fcntl.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include "zipfusion/core/error.h"
 
@@ -79,6 +83,17 @@ void check_output_file(const std::filesystem::path& path) {
   const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
   if (!fs::is_directory(folder, ec)) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " does not exist");
   if (::access(folder.c_str(), W_OK) != 0) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " is not writable");
+  // The folder's permissions do not tell everything (/proc, a read-only mount, a full disk's
+  // inodes): a file is made there, as write_file_atomic's temporary will be, and removed.
+  const fs::path probe = folder / (".zf_write_probe_" + std::to_string(::getpid()));
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
+  if (fd < 0) {
+    const int error = errno;
+    if (error != EEXIST) throw IoError(path.string() + ": cannot write: folder " + folder.string() + ": " + std::strerror(error));
+    return;  // another check of this process made it: the folder takes files
+  }
+  ::close(fd);
+  ::unlink(probe.c_str());
 }
 
 std::filesystem::path folder_path(const std::filesystem::path& dir) {

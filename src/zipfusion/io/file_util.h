@@ -19,8 +19,9 @@ std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_file_atomic(const std::filesystem::path& path, std::string_view text);
 
-//! Throws IoError naming `path` when a file could not be written there: its folder does not exist
-//! or is not writable, or the path is a folder. For commands that compute for a while before
+//! Throws IoError naming `path` when a file could not be written there: its folder does not exist,
+//! is not writable or takes no new file (a probe file is made there and removed), or the path is
+//! a folder. For commands that compute for a while before
 //! they write one file, checked first so that the work is not lost.
 void check_output_file(const std::filesystem::path& path);
 
