@@ -326,8 +326,8 @@ void run(const Args& args) {
   // Open3D logs to standard output: with --json only its errors (which also throw) may appear.
   o3d::utility::SetVerbosityLevel(args.json ? o3d::utility::VerbosityLevel::Error : o3d::utility::VerbosityLevel::Warning);
 
-  const Capture capture = Capture::open(args.capture);
-  const Rig rig = args.rig.empty() ? capture.rig() : cli::rig_with_calibration_from(capture.rig(), args.rig);
+  Capture capture = Capture::open(args.capture);
+  const Rig rig = args.rig.empty() ? capture.rig() : cli::use_calibration_from(capture, args.rig);
   const cli::FrameRange range = cli::parse_frame_range(args.frames, capture.frame_count());
   const int poisson_frame = args.poisson_frame < 0 ? range.begin : args.poisson_frame;
   if (!args.no_poisson && poisson_frame >= capture.frame_count()) {

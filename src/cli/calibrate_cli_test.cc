@@ -250,8 +250,9 @@ TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
 }
 
 // Rigs other than a ring: two neighbours of an eight-camera ring (an arc: the origin is still
-// where they look), cameras mounted upside down, and one camera looking steeply down (54°; its
-// origin goes 2 m ahead of it, so only the floor and the tilt are checked).
+// where they look), a camera mounted upside down, two cameras facing each other, and one camera
+// looking steeply down (54°; its origin goes 2 m ahead of it, so only the floor and the tilt are
+// checked).
 TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
   // Keeps only the cameras `kept` of a synth capture (rig.json, ground truth and folders).
   auto keep_cameras = [](const fs::path& capture, const std::vector<int>& kept) {
@@ -276,12 +277,12 @@ TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   expect_levelled_like_truth(read_rig(out), arc_truth, true, "arc");
 
-  // Cameras 0 and 1 of a ring upside down: their depth turned 180° in the image, their poses
-  // about their optical axes (the principal point is the image's centre, so the pixels map exactly).
+  // Camera 0 of a ring upside down: its depth turned 180° in the image, its pose about its
+  // optical axis (the principal point is the image's centre, so the pixels map exactly).
   const fs::path ring = dir_ / "ring";
   ASSERT_EQ(run("synth --out " + ring.string() + " --frames 1 --cameras 4 --resolution 320x240").exit_code, 0);
   Rig flipped_truth = read_rig(ring / "ground_truth" / "rig.json");
-  for (int c : {0, 1}) {
+  for (int c : {0}) {
     const fs::path file = ring / flipped_truth.cameras[c].name / "depth" / "000000.png";
     const DepthImage depth = read_depth_png(file);
     DepthImage turned(depth.width, depth.height);
@@ -297,6 +298,15 @@ TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
   r = run("calibrate floor " + ring.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   expect_levelled_like_truth(read_rig(out), flipped_truth, true, "upside down");
+
+  // Two cameras facing each other: their axes lie on one line, and the origin is between them.
+  const fs::path pair = dir_ / "pair";
+  ASSERT_EQ(run("synth --out " + pair.string() + " --frames 1 --cameras 2 --resolution 320x240").exit_code, 0);
+  const Rig pair_truth = read_rig(pair / "ground_truth" / "rig.json");
+  write_rig(pair / "rig.json", in_camera0_frame(pair_truth));
+  r = run("calibrate floor " + pair.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), pair_truth, true, "facing pair");
 
   const fs::path single = dir_ / "single";
   ASSERT_EQ(run("synth --out " + single.string() + " --frames 2 --cameras 1 --height 3 --radius 1.5 --resolution 320x240").exit_code, 0);

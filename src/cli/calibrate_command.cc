@@ -225,14 +225,14 @@ void run_floor(FloorArgs& args) {
   args.options.set_volume = !args.no_volume;
   args.options.validate();  // its own bounds first; the frames are checked against the capture below
   check_output_file(args.out);
-  const Capture capture = Capture::open(args.capture);
+  Capture capture = Capture::open(args.capture);
   // The floor does not move, and a few frames see it around a subject who does.
   const FrameRange range = args.frames.empty() ? FrameRange{0, std::min(FloorOptions{}.end_frame, capture.frame_count())}
                                                : parse_frame_range(args.frames, capture.frame_count());
   args.options.first_frame = range.begin;
   args.options.end_frame = range.end;
   // A calibrated rig (calibrate extrinsics') seen with this capture's recording: its depth unit, sizes.
-  const Rig rig = args.rig.empty() ? capture.rig() : rig_with_calibration_from(capture.rig(), args.rig);
+  const Rig rig = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
   const FloorResult result =
       level_rig_to_floor(capture, rig, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig, args.options);
   for (const std::string& file : result.unreadable) print_diagnostic("calibrate: warning: " + file + "; that frame's depth is not used");

@@ -349,6 +349,20 @@ TEST_F(Cli, ReconstructTakesTheWholeCalibrationFromRig) {
   EXPECT_EQ(read_file_bytes(dir_ / "calibrated" / "000000.ply"), read_file_bytes(dir_ / "true" / "000000.ply"));
   ASSERT_EQ(run("reconstruct " + capture.string() + " --out " + (dir_ / "nominal").string()).exit_code, 0);
   EXPECT_NE(read_file_bytes(dir_ / "nominal" / "000000.ply"), read_file_bytes(dir_ / "true" / "000000.ply"));
+  // Depth distortion in --rig undistorts the depth as it would from the capture's own rig.json.
+  Rig distorted = read_rig(truth);
+  for (CameraModel& model : distorted.cameras) {
+    model.depth_intrinsics.distortion = {0.04, -0.02, 0, 0, 0};
+    model.depth_intrinsics.has_distortion = true;
+  }
+  write_rig(dir_ / "distorted.json", distorted);
+  r = run("reconstruct " + capture.string() + " --rig " + (dir_ / "distorted.json").string() + " --out " + (dir_ / "through_rig").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  write_rig(capture / "rig.json", distorted);
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --out " + (dir_ / "own").string()).exit_code, 0);
+  EXPECT_EQ(read_file_bytes(dir_ / "through_rig" / "000000.ply"), read_file_bytes(dir_ / "own" / "000000.ply"));
+  EXPECT_NE(read_file_bytes(dir_ / "own" / "000000.ply"), read_file_bytes(dir_ / "true" / "000000.ply"));
+  write_rig(capture / "rig.json", nominal);
   // A calibration of other images is refused, naming the field.
   Rig other = read_rig(truth);
   other.cameras[1].color_intrinsics->width = 320;

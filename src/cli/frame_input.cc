@@ -70,7 +70,7 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
     if (!args.devices.devices.empty() || !args.devices.replay.empty()) throw InvalidInput("--devices, --replay: only with --live");
     in.capture.emplace(Capture::open(args.capture));
-    in.rig = rig_path.empty() ? in.capture->rig() : rig_with_calibration_from(in.capture->rig(), rig_path);
+    in.rig = rig_path.empty() ? in.capture->rig() : use_calibration_from(*in.capture, rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
                  report = std::make_shared<UnreadableFrames>(command)](double& decode_ms) {

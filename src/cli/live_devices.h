@@ -28,12 +28,15 @@ struct LiveDeviceArgs {
   bool replay_loop = false;          // replays again and again (serve --loop)
 };
 
-//! The LiveRig's options for the selected cameras. A device delivers in real time, so a camera
-//! 0.25 s late is dropped from its frame set and the set goes on; a replayed dump delivers as fast
-//! as it is read, so a late frame only means a busy machine (CI runs tests side by side), and the
-//! rig waits up to the stall timeout before it decides a set without it.
+//! The LiveRig's options for the selected cameras. A device (or a paced replay) delivers in real
+//! time, so a camera 0.25 s late is dropped from its frame set and the set goes on; an unpaced
+//! replay delivers as fast as it is read, so a late frame only means a busy machine (CI runs
+//! tests side by side), and the rig waits up to the stall timeout before it decides a set without it.
 inline LiveRigOptions live_rig_options(const LiveDeviceArgs& args, const std::atomic<bool>* cancel) {
-  const double wait = args.max_wait_s >= 0 ? args.max_wait_s : args.replay.empty() ? 0.25 : args.kinect.stall_timeout_s;
+  // A paced replay delivers as a device does (a looped dump shorter than the others' pass must
+  // not hold every set for seconds).
+  const bool real_time = args.replay.empty() || args.replay_paced;
+  const double wait = args.max_wait_s >= 0 ? args.max_wait_s : real_time ? 0.25 : args.kinect.stall_timeout_s;
   return LiveRigOptions{.max_wait_s = std::min(wait, 60.0), .cancel = cancel};
 }
 

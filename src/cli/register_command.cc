@@ -43,8 +43,8 @@ void run_register(RegisterArgs& args) {
   if (args.max_frames < 1) throw InvalidInput("--max-frames: must be at least 1, got " + std::to_string(args.max_frames));
   args.options.validate();
   check_output_file(args.out);
-  const Capture capture = Capture::open(args.capture);
-  const Rig start = args.rig.empty() ? capture.rig() : rig_with_calibration_from(capture.rig(), args.rig);
+  Capture capture = Capture::open(args.capture);
+  const Rig start = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
   const std::vector<int> frames = spread_frames(range, args.max_frames);

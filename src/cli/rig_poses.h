@@ -1,11 +1,13 @@
 #pragma once
 // --rig FILE for the CLI: the calibration of the same cameras from another rig.json (what
 // calibrate and register write): poses, intrinsics, color_from_depth, the capture volume.
+// use_calibration_from puts it into an open capture.
 
 #include <filesystem>
 #include <string>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/io/capture.h"
 #include "zipfusion/io/rig.h"
 
 namespace zipfusion::cli {
@@ -14,8 +16,8 @@ namespace zipfusion::cli {
 //! intrinsics and color_from_depth, the volume when that file has one, and poses_trusted. What
 //! belongs to the recording stays the capture's (frame rate and count, depth unit, image sizes).
 //! Throws InvalidInput naming that file and the field when its cameras differ: other names or
-//! image sizes, colour where the capture has none (or none where it has), or other depth
-//! distortion (the capture's frames are undistorted by its own rig.json as they are read).
+//! image sizes, or colour where the capture has none (or none where it has). A capture reads its
+//! frames through the result with Capture::use_calibration (its depth distortion included).
 inline Rig rig_with_calibration_from(const Rig& rig, const std::filesystem::path& path) {
   const Rig other = read_rig(path);
   const std::string source = path.string();
@@ -35,10 +37,6 @@ inline Rig rig_with_calibration_from(const Rig& rig, const std::filesystem::path
       }
     };
     same_size(theirs.depth_intrinsics, ours.depth_intrinsics, "depth_intrinsics");
-    if (theirs.depth_intrinsics.has_distortion != ours.depth_intrinsics.has_distortion ||
-        theirs.depth_intrinsics.distortion != ours.depth_intrinsics.distortion) {
-      throw InvalidInput(field + "depth_intrinsics.distortion: differs from the capture's (its depth is undistorted as its own rig.json says)");
-    }
     if (theirs.has_color() != ours.has_color()) {
       throw InvalidInput(field + "color_intrinsics: " + (ours.has_color() ? "missing, but the capture's camera has colour" : "given, but the capture's camera has no colour"));
     }
@@ -52,6 +50,13 @@ inline Rig rig_with_calibration_from(const Rig& rig, const std::filesystem::path
   if (other.volume) result.volume = other.volume;
   result.poses_trusted = other.poses_trusted;
   return result;
+}
+
+//! The capture reads its frames through the calibration at `path` (rig_with_calibration_from):
+//! its depth distortion undistorts the depth. Returns the capture's rig then.
+inline const Rig& use_calibration_from(Capture& capture, const std::filesystem::path& path) {
+  capture.use_calibration(rig_with_calibration_from(capture.rig(), path));
+  return capture.rig();
 }
 
 }  // namespace zipfusion::cli

@@ -22,6 +22,10 @@ constexpr size_t kMostPoints = 300000;
 // floor under a table top that fills the view.
 constexpr double kLowerPlaneShare = 0.2;
 constexpr double kParallelDeg = 10;
+// ... and lies this far below it at least (a table top stands 0.4 m and more above the floor;
+// a Kinect's depth noise is a few centimetres), in at most this many steps.
+constexpr double kLowerPlaneStepM = 0.3;
+constexpr int kMostStepsDown = 3;
 // Where the cameras look: the optical axes, laid flat on the floor, meet in a point when they
 // spread over more than about 37° (two axes: 1 − cos 37° = 0.2 per axis); an axis flatter than
 // this (a camera looking nearly straight down) counts as the point below the camera.
@@ -135,9 +139,9 @@ std::string floor_problem(Plane& plane, const Rig& rig, const Eigen::Vector3d& u
                   rig.cameras[lowest_camera].name.c_str(), lowest, options.min_camera_height_m);
     return text;
   }
-  const double tilt_deg = std::acos(std::min(1.0, std::abs(plane.normal.dot(up_axis)))) * 180 / std::numbers::pi;
+  const double tilt_deg = std::acos(std::clamp(plane.normal.dot(up_axis), -1.0, 1.0)) * 180 / std::numbers::pi;
   if (tilt_deg > options.max_tilt_deg) {
-    std::snprintf(text, sizeof text, "it is %.0f degrees from the cameras' up direction (at most %.0f: cameras turned on their sides?)",
+    std::snprintf(text, sizeof text, "its up side is %.0f degrees from the cameras' up direction (at most %.0f: a wall, a ceiling, or cameras on their sides?)",
                   tilt_deg, options.max_tilt_deg);
     return text;
   }
@@ -199,7 +203,8 @@ Eigen::Vector3d looked_at_on_floor(const Rig& rig, const Plane& floor) {
   if (solver.eigenvalues()(0) >= kSpreadPerAxis * cameras) {
     point = normal_matrix.ldlt().solve(rhs);
   } else {
-    point = centroid + (ahead.norm() > 1e-6 ? Eigen::Vector2d(kOriginAheadM * ahead.normalized()) : Eigen::Vector2d::Zero());
+    // Cameras facing each other along one line look at the middle between them.
+    point = centroid + (ahead.norm() > 0.5 * cameras ? Eigen::Vector2d(kOriginAheadM * ahead.normalized()) : Eigen::Vector2d::Zero());
   }
   // On the floor: the plane's point nearest the origin, moved within it.
   return -floor.offset * z + point.x() * e1 + point.y() * e2;
@@ -242,15 +247,23 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
     throw InvalidInput(source + ": frames: the capture has " + std::to_string(capture.frame_count()) + " frames");
   }
 
-  // The cameras' up axis, sign aside: the principal direction of their image-up directions (−y
-  // of each depth camera), so that cameras mounted upside down agree with upright ones and
-  // downward tilts around a ring cancel.
+  // Up, as the cameras see it: the principal direction of their image-up directions (−y of each
+  // depth camera), where tilts down around a ring cancel, turned the way most cameras' up points:
+  // a camera mounted upside down among upright ones agrees, and a ceiling (which faces the
+  // cameras too) or a wall in front of a camera tilted down is not taken for the floor.
   Eigen::Matrix3d up_scatter = Eigen::Matrix3d::Zero();
+  std::vector<Eigen::Vector3d> camera_ups;
   for (const CameraModel& model : rig.cameras) {
-    const Eigen::Vector3d up = model.world_from_depth.linear() * -Eigen::Vector3d::UnitY();
-    up_scatter += up * up.transpose();
+    camera_ups.push_back(model.world_from_depth.linear() * -Eigen::Vector3d::UnitY());
+    up_scatter += camera_ups.back() * camera_ups.back().transpose();
   }
-  const Eigen::Vector3d up_axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(up_scatter).eigenvectors().col(2);  // largest
+  Eigen::Vector3d up_axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(up_scatter).eigenvectors().col(2);  // largest
+  int agreeing = 0;
+  for (const Eigen::Vector3d& up : camera_ups) agreeing += up.dot(up_axis) > 0 ? 1 : -1;
+  if (agreeing == 0) {
+    throw InvalidInput(source + ": as many cameras are mounted upside down as upright: which way is up is not known");
+  }
+  if (agreeing < 0) up_axis = -up_axis;
 
   const DepthPoints depth = gather_depth_points(capture, rig, options);
   FloorResult result;
@@ -279,17 +292,21 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
                                           " depth points) is not the floor: " + why) +
                        "; frame the floor in some camera's view");
   }
+  // Each step down searches only the points below the last pick, a whole step lower: the steps
+  // end, and depth noise under the floor is no lower floor.
   const double cos_parallel = std::cos(kParallelDeg * std::numbers::pi / 180);
-  while (true) {
+  std::vector<int> candidates = all;
+  for (int step = 0; step < kMostStepsDown; ++step) {
     std::vector<int> below;
-    for (int i : all) {
-      if (best.plane.distance(depth.points[i]) < -options.inlier_distance_m) below.push_back(i);
+    for (int i : candidates) {
+      if (best.plane.distance(depth.points[i]) < -kLowerPlaneStepM) below.push_back(i);
     }
     const PlaneCount lower = find_plane(depth.points, below, options, rng, [&](Plane& plane) {
       return can_be_floor(plane) && plane.normal.dot(best.plane.normal) >= cos_parallel;
     });
     if (lower.count < std::max<double>(kFewestFloorPoints, kLowerPlaneShare * best.count)) break;
     best = lower;
+    candidates = std::move(below);
   }
   // Least squares on the inliers, twice (the second with the refined plane's inliers); the fit
   // must still be a floor.

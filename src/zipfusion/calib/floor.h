@@ -10,11 +10,12 @@
 //!
 //! The floor is the plane found by RANSAC over the depth points of all cameras (a few frames):
 //! the one with the most points within `inlier_distance_m` among planes that every camera
-//! stands at least `min_camera_height_m` above, on one side, and whose normal lies within
-//! `max_tilt_deg` of the cameras' up axis (the principal direction of their image-up
-//! directions, sign aside: upright and upside-down cameras agree); a level plane below it with a
-//! fifth of its points is preferred (a table top above the floor); the pick is refitted by least
-//! squares to its inliers and checked again. Thread safety: pure functions.
+//! stands at least `min_camera_height_m` above, on one side, and whose up side (towards the
+//! cameras) lies within `max_tilt_deg` of the cameras' up direction (the principal direction of
+//! their image-up directions, turned the way most of them point: a camera mounted upside down
+//! among upright ones agrees, a ceiling or a wall ahead is no floor); a level plane at least
+//! 0.3 m below it with a fifth of its points is preferred (a table top above the floor); the pick
+//! is refitted by least squares to its inliers and checked again. Thread safety: pure functions.
 
 #include <string>
 #include <vector>

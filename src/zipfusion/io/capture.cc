@@ -156,16 +156,35 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
     check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
-  capture.depth_map_begin_.assign(1, 0);
-  for (const CameraModel& camera : rig.cameras) {
+  capture.build_depth_maps();
+  return capture;
+}
+
+void Capture::build_depth_maps() {
+  depth_map_begin_.assign(1, 0);
+  depth_source_pixel_.clear();
+  for (const CameraModel& camera : rig_.cameras) {
     const Intrinsics& k = camera.depth_intrinsics;
     if (k.has_distortion && k.distortion != std::array<double, 5>{}) {
       const std::vector<int> map = depth_undistortion_map(k);
-      capture.depth_source_pixel_.insert(capture.depth_source_pixel_.end(), map.begin(), map.end());
+      depth_source_pixel_.insert(depth_source_pixel_.end(), map.begin(), map.end());
     }
-    capture.depth_map_begin_.push_back(capture.depth_source_pixel_.size());
+    depth_map_begin_.push_back(depth_source_pixel_.size());
   }
-  return capture;
+}
+
+void Capture::use_calibration(const Rig& calibrated) {
+  // What the frames are checked against must not change: the same cameras and image sizes.
+  bool same = calibrated.cameras.size() == rig_.cameras.size() && calibrated.depth_unit_m == rig_.depth_unit_m;
+  for (size_t c = 0; same && c < rig_.cameras.size(); ++c) {
+    const CameraModel &a = calibrated.cameras[c], &b = rig_.cameras[c];
+    same = a.name == b.name && a.depth_intrinsics.width == b.depth_intrinsics.width && a.depth_intrinsics.height == b.depth_intrinsics.height &&
+           a.has_color() == b.has_color() &&
+           (!a.has_color() || (a.color_intrinsics->width == b.color_intrinsics->width && a.color_intrinsics->height == b.color_intrinsics->height));
+  }
+  if (!same) throw InvalidInput(dir_.string() + ": a calibration of other cameras or image sizes than rig.json's");
+  rig_ = calibrated;
+  build_depth_maps();
 }
 
 std::vector<int> depth_undistortion_map(const Intrinsics& k) {

@@ -86,7 +86,13 @@ class Capture {
   CameraFrame load_camera_frame(int frame, int camera) const;
   FrameSet load_frame(int frame) const;
 
+  //! Reads the frames through another calibration of the same cameras (a `--rig`): its depth
+  //! distortion undistorts the depth from now on, and rig() returns it. Throws InvalidInput when
+  //! its cameras, image sizes or depth unit differ from rig.json's.
+  void use_calibration(const Rig& calibrated);
+
  private:
+  void build_depth_maps();  // from rig_'s depth intrinsics
   std::filesystem::path dir_;
   Rig rig_;
   CaptureOpenOptions options_;

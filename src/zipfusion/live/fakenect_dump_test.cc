@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <random>
+#include <thread>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/file_util.h"
@@ -339,9 +340,18 @@ TEST_F(FakenectDump, APacedReplayDeliversAtTheRecordedTimes) {
     LiveFrame frame;
     EXPECT_EQ(later.read(frame, 0.05), ReadStatus::kTimeout);
     EXPECT_EQ(later.read(frame, 0), ReadStatus::kTimeout);
-    later.stop();  // heard while waiting, not after the 30 s
+    // Stopped from another thread while a read waits: that read delivers the frame it had read
+    // at once (as a device's queued frames are), not after the 30 s, and the stream ends.
     const auto asked = std::chrono::steady_clock::now();
+    std::thread stopper([&later] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      later.stop();
+    });
+    EXPECT_EQ(later.read(frame, 60), ReadStatus::kFrame);
+    stopper.join();
+    EXPECT_NEAR(frame.time_s, 1700000000.001, 2e-6);
     EXPECT_EQ(later.read(frame, 60), ReadStatus::kEnded);
+    EXPECT_EQ(later.end_reason(), "stopped");
     EXPECT_LT(std::chrono::steady_clock::now() - asked, std::chrono::seconds(20));
   }
   timeline.start = std::chrono::steady_clock::now();

@@ -70,12 +70,12 @@ ReadStatus ReplayCamera::read(LiveFrame& frame, double timeout_s) {
   const auto frame_due = due(pending_.time_s);
   const auto until = std::min(frame_due, deadline);
   while (true) {
-    if (stopped_) return end("stopped");
+    if (stopped_) break;  // the frame already read is delivered, as a device's queued frames are
     const auto now = steady_clock::now();
     if (now >= until) break;
     std::this_thread::sleep_for(std::min<steady_clock::duration>(until - now, kLongestSleep));
   }
-  if (steady_clock::now() < frame_due) return ReadStatus::kTimeout;
+  if (!stopped_ && steady_clock::now() < frame_due) return ReadStatus::kTimeout;
   std::swap(frame, pending_);
   has_pending_ = false;
   return ReadStatus::kFrame;
@@ -90,6 +90,7 @@ ReadStatus ReplayCamera::read_next(LiveFrame& frame) {
       next_ = 0;
       ++pass_;
       depth_this_pass_ = 0;
+      has_color_ = false;  // the last pass's last colour is no colour of this pass's first depth
     }
     const FakenectIndexEntry& entry = entries_[next_++];
     if (entry.type != 'd' && entry.type != 'r') continue;
