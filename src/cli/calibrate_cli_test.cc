@@ -267,54 +267,44 @@ TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
       write_rig(file, rig);
     }
   };
+  // Moves the capture's rig into camera 0's frame, levels it, and compares with the truth.
+  const fs::path out = dir_ / "level.json";
+  auto level_like_truth = [&](const fs::path& capture, const Rig& truth, const std::string& options, bool origin_known, const std::string& what) {
+    write_rig(capture / "rig.json", in_camera0_frame(truth));
+    const CommandResult r = run("calibrate floor " + capture.string() + options + " --out " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << what << ": " << r.err;
+    expect_levelled_like_truth(read_rig(out), truth, origin_known, what);
+  };
   const fs::path arc = dir_ / "arc";
   ASSERT_EQ(run("synth --out " + arc.string() + " --frames 1 --cameras 8 --resolution 320x240").exit_code, 0);
   keep_cameras(arc, {0, 1});
-  const Rig arc_truth = read_rig(arc / "ground_truth" / "rig.json");
-  write_rig(arc / "rig.json", in_camera0_frame(arc_truth));
-  const fs::path out = dir_ / "level.json";
-  CommandResult r = run("calibrate floor " + arc.string() + " --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), arc_truth, true, "arc");
+  level_like_truth(arc, read_rig(arc / "ground_truth" / "rig.json"), "", true, "arc");
 
   // Camera 0 of a ring upside down: its depth turned 180° in the image, its pose about its
   // optical axis (the principal point is the image's centre, so the pixels map exactly).
   const fs::path ring = dir_ / "ring";
   ASSERT_EQ(run("synth --out " + ring.string() + " --frames 1 --cameras 4 --resolution 320x240").exit_code, 0);
   Rig flipped_truth = read_rig(ring / "ground_truth" / "rig.json");
-  for (int c : {0}) {
-    const fs::path file = ring / flipped_truth.cameras[c].name / "depth" / "000000.png";
-    const DepthImage depth = read_depth_png(file);
-    DepthImage turned(depth.width, depth.height);
-    for (int v = 0; v < depth.height; ++v) {
-      for (int u = 0; u < depth.width; ++u) turned(depth.width - 1 - u, depth.height - 1 - v) = depth(u, v);
-    }
-    write_depth_png(file, turned);
-    Rigid3d& pose = flipped_truth.cameras[c].world_from_depth;
-    pose.linear() = pose.linear() * Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  const fs::path file = ring / flipped_truth.cameras[0].name / "depth" / "000000.png";
+  const DepthImage depth = read_depth_png(file);
+  DepthImage turned(depth.width, depth.height);
+  for (int v = 0; v < depth.height; ++v) {
+    for (int u = 0; u < depth.width; ++u) turned(depth.width - 1 - u, depth.height - 1 - v) = depth(u, v);
   }
+  write_depth_png(file, turned);
+  Rigid3d& pose = flipped_truth.cameras[0].world_from_depth;
+  pose.linear() = pose.linear() * Eigen::Vector3d(-1, -1, 1).asDiagonal();
   write_rig(ring / "ground_truth" / "rig.json", flipped_truth);
-  write_rig(ring / "rig.json", in_camera0_frame(flipped_truth));
-  r = run("calibrate floor " + ring.string() + " --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), flipped_truth, true, "upside down");
+  level_like_truth(ring, flipped_truth, "", true, "upside down");
 
   // Two cameras facing each other: their axes lie on one line, and the origin is between them.
   const fs::path pair = dir_ / "pair";
   ASSERT_EQ(run("synth --out " + pair.string() + " --frames 1 --cameras 2 --resolution 320x240").exit_code, 0);
-  const Rig pair_truth = read_rig(pair / "ground_truth" / "rig.json");
-  write_rig(pair / "rig.json", in_camera0_frame(pair_truth));
-  r = run("calibrate floor " + pair.string() + " --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), pair_truth, true, "facing pair");
+  level_like_truth(pair, read_rig(pair / "ground_truth" / "rig.json"), "", true, "facing pair");
 
   const fs::path single = dir_ / "single";
   ASSERT_EQ(run("synth --out " + single.string() + " --frames 2 --cameras 1 --height 3 --radius 1.5 --resolution 320x240").exit_code, 0);
-  const Rig single_truth = read_rig(single / "ground_truth" / "rig.json");
-  write_rig(single / "rig.json", in_camera0_frame(single_truth));
-  r = run("calibrate floor " + single.string() + " --volume-half-width 1 --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), single_truth, false, "single camera");
+  level_like_truth(single, read_rig(single / "ground_truth" / "rig.json"), " --volume-half-width 1", false, "single camera");
 }
 
 // A table top 2.4 m wide at 0.75 m fills more of the cameras' views than the floor around it
