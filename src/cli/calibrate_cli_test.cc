@@ -6,6 +6,7 @@
 
 #include <fstream>
 #include <numbers>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_test_util.h"
@@ -325,6 +326,61 @@ TEST_F(CalibrateCli, TakesTheFloorUnderATableTop) {
   const CommandResult r = run("calibrate floor " + capture.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   expect_levelled_like_truth(read_rig(out), truth, true, "table");
+}
+
+// A PLY of the rectangle corner + a·side_a + b·side_b (a, b in [0, 1]) in tiles of about 0.25 m,
+// both faces, for `synth --subject` (the renderer clips small triangles at the near plane better).
+void write_rectangle_ply(const fs::path& path, const Eigen::Vector3d& corner, const Eigen::Vector3d& side_a, const Eigen::Vector3d& side_b) {
+  const int na = std::max(1, static_cast<int>(std::lround(side_a.norm() / 0.25)));
+  const int nb = std::max(1, static_cast<int>(std::lround(side_b.norm() / 0.25)));
+  std::string vertices, faces;
+  for (int i = 0; i <= na; ++i) {
+    for (int j = 0; j <= nb; ++j) {
+      const Eigen::Vector3d p = corner + side_a * i / na + side_b * j / nb;
+      vertices += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) + "\n";
+    }
+  }
+  int count = 0;
+  for (int i = 0; i < na; ++i) {
+    for (int j = 0; j < nb; ++j) {
+      const int a = i * (nb + 1) + j, b = a + nb + 1;
+      for (const auto& [x, y, z] : {std::tuple{a, b, b + 1}, {a, b + 1, a + 1}, {a, b + 1, b}, {a, a + 1, b + 1}}) {
+        faces += "3 " + std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z) + "\n";
+        ++count;
+      }
+    }
+  }
+  write_file_atomic(path, "ply\nformat ascii 1.0\nelement vertex " + std::to_string((na + 1) * (nb + 1)) +
+                              "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(count) +
+                              "\nproperty list uchar int vertex_indices\nend_header\n" + vertices + faces);
+}
+
+// Planes that face the cameras but are no floor: a ceiling over level cameras (which sees more of
+// it than of the floor), and a wall 0.75 m ahead of a single camera looking 54° down.
+TEST_F(CalibrateCli, TakesNeitherACeilingNorAWallForTheFloor) {
+  write_rectangle_ply(dir_ / "ceiling000000.ply", {-5, -5, 2.5}, {10, 0, 0}, {0, 10, 0});
+  const fs::path ceiling = dir_ / "ceiling";
+  ASSERT_EQ(run("synth --out " + ceiling.string() + " --frames 1 --cameras 4 --resolution 320x240 --target-height 1.3 --subject " +
+                (dir_ / "ceiling%06d.ply").string()).exit_code, 0);
+  const Rig ceiling_truth = read_rig(ceiling / "ground_truth" / "rig.json");
+  write_rig(ceiling / "rig.json", in_camera0_frame(ceiling_truth));
+  const fs::path out = dir_ / "level.json";
+  CommandResult r = run("calibrate floor " + ceiling.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), ceiling_truth, true, "under a ceiling");
+
+  // synth puts camera 0 at 45° on its circle (0.8 m here), looking at the circle's centre.
+  const Eigen::Vector3d camera{0.8 * std::cos(std::numbers::pi / 4), 0.8 * std::sin(std::numbers::pi / 4), 0};
+  const Eigen::Vector3d ahead = -camera.normalized(), across(-ahead.y(), ahead.x(), 0);
+  write_rectangle_ply(dir_ / "wall000000.ply", camera + 0.75 * ahead - 3 * across, 6 * across, {0, 0, 3});
+  const fs::path wall = dir_ / "wall";
+  ASSERT_EQ(run("synth --out " + wall.string() + " --frames 1 --cameras 1 --radius 0.8 --target-height 0.2 --resolution 320x240 --subject " +
+                (dir_ / "wall%06d.ply").string()).exit_code, 0);
+  const Rig wall_truth = read_rig(wall / "ground_truth" / "rig.json");
+  write_rig(wall / "rig.json", in_camera0_frame(wall_truth));
+  r = run("calibrate floor " + wall.string() + " --volume-half-width 1 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_levelled_like_truth(read_rig(out), wall_truth, false, "before a wall");
 }
 
 // The same on the real dancer capture (Kinect noise and holes), from its true poses moved into

@@ -26,6 +26,10 @@ constexpr double kParallelDeg = 10;
 // a Kinect's depth noise is a few centimetres), in at most this many steps.
 constexpr double kLowerPlaneStepM = 0.3;
 constexpr int kMostStepsDown = 3;
+// The second least-squares fit keeps the points within this many RMS of the first, and within
+// at least this distance.
+constexpr double kRefitRmsFactor = 2.5;
+constexpr double kClosestRefitM = 0.005;
 // Where the cameras look: the optical axes, laid flat on the floor, meet in a point when they
 // spread over more than about 37° (two axes: 1 − cos 37° = 0.2 per axis); an axis flatter than
 // this (a camera looking nearly straight down) counts as the point below the camera.
@@ -311,7 +315,16 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
   // Least squares on the inliers, twice (the second with the refined plane's inliers); the fit
   // must still be a floor.
   Plane floor = refit(depth.points, best.plane, options.inlier_distance_m);
-  floor = refit(depth.points, floor, options.inlier_distance_m);
+  // The second fit takes the points within 2.5 times the first fit's RMS (not less than 5 mm): where
+  // a wall meets the floor, the wall's foot within the inlier distance would tilt the fit.
+  double first_squares = 0;
+  int near = 0;
+  for (const Eigen::Vector3d& p : depth.points) {
+    const double d = floor.distance(p);
+    if (std::abs(d) < options.inlier_distance_m) first_squares += d * d, ++near;
+  }
+  const double rms = near ? std::sqrt(first_squares / near) : options.inlier_distance_m;
+  floor = refit(depth.points, floor, std::clamp(kRefitRmsFactor * rms, kClosestRefitM, options.inlier_distance_m));
   if (const std::string why = floor_problem(floor, rig, up_axis, options); !why.empty()) {
     throw InvalidInput(source + ": the floor's least-squares fit is not a floor: " + why + "; try a smaller --inlier-distance");
   }
