@@ -21,7 +21,12 @@ namespace fs = std::filesystem;
 using testing::CommandResult;
 using testing::line_count;
 
-class CalibrateCli : public testing::CliTest {};
+class CalibrateCli : public testing::CliTest {
+ protected:
+  // Moves the capture's rig (its truth) into camera 0's frame, levels it with `calibrate floor
+  // CAPTURE OPTIONS`, and compares the result with the truth (expect_levelled_like_truth).
+  void level_like_truth(const fs::path& capture, const Rig& truth, const std::string& options, bool origin_known, const std::string& what);
+};
 
 TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
   const fs::path capture = dir_ / "wand";
@@ -170,6 +175,15 @@ Rig moved_rig(Rig rig, const Rigid3d& moved_from_world) {
 
 Rig in_camera0_frame(const Rig& rig) { return moved_rig(rig, rig.cameras[0].world_from_depth.inverse()); }
 
+void CalibrateCli::level_like_truth(const fs::path& capture, const Rig& truth, const std::string& options, bool origin_known,
+                                    const std::string& what) {
+  write_rig(capture / "rig.json", in_camera0_frame(truth));
+  const fs::path out = dir_ / "level.json";
+  const CommandResult r = run("calibrate floor " + capture.string() + options + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << what << ": " << r.err;
+  expect_levelled_like_truth(read_rig(out), truth, origin_known, what);
+}
+
 TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
   const fs::path capture = dir_ / "ring";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 3 --resolution 320x240").exit_code, 0);
@@ -268,14 +282,6 @@ TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
       write_rig(file, rig);
     }
   };
-  // Moves the capture's rig into camera 0's frame, levels it, and compares with the truth.
-  const fs::path out = dir_ / "level.json";
-  auto level_like_truth = [&](const fs::path& capture, const Rig& truth, const std::string& options, bool origin_known, const std::string& what) {
-    write_rig(capture / "rig.json", in_camera0_frame(truth));
-    const CommandResult r = run("calibrate floor " + capture.string() + options + " --out " + out.string());
-    ASSERT_EQ(r.exit_code, 0) << what << ": " << r.err;
-    expect_levelled_like_truth(read_rig(out), truth, origin_known, what);
-  };
   const fs::path arc = dir_ / "arc";
   ASSERT_EQ(run("synth --out " + arc.string() + " --frames 1 --cameras 8 --resolution 320x240").exit_code, 0);
   keep_cameras(arc, {0, 1});
@@ -308,26 +314,6 @@ TEST_F(CalibrateCli, LevelsArcsUpsideDownAndSingleCameras) {
   level_like_truth(single, read_rig(single / "ground_truth" / "rig.json"), " --volume-half-width 1", false, "single camera");
 }
 
-// A table top 2.4 m wide at 0.75 m fills more of the cameras' views than the floor around it
-// (8 536 of 10 562 points within 3 cm of it against 1 870), but the floor lies below it, level
-// and wide enough: it is the floor.
-TEST_F(CalibrateCli, TakesTheFloorUnderATableTop) {
-  const fs::path table = dir_ / "table000000.ply";
-  write_file_atomic(table, std::string("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-                                       "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
-                                       "-1.2 -1.2 0.75\n1.2 -1.2 0.75\n1.2 1.2 0.75\n-1.2 1.2 0.75\n"
-                                       "3 0 1 2\n3 0 2 3\n3 0 2 1\n3 0 3 2\n"));  // both faces of the top
-  const fs::path capture = dir_ / "room";
-  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 4 --resolution 320x240 --height 2.2 --subject " +
-                (dir_ / "table%06d.ply").string()).exit_code, 0);
-  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
-  write_rig(capture / "rig.json", in_camera0_frame(truth));
-  const fs::path out = dir_ / "level.json";
-  const CommandResult r = run("calibrate floor " + capture.string() + " --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), truth, true, "table");
-}
-
 // A PLY of the rectangle corner + a·side_a + b·side_b (a, b in [0, 1]) in tiles of about 0.25 m,
 // both faces, for `synth --subject` (the renderer clips small triangles at the near plane better).
 void write_rectangle_ply(const fs::path& path, const Eigen::Vector3d& corner, const Eigen::Vector3d& side_a, const Eigen::Vector3d& side_b) {
@@ -355,6 +341,17 @@ void write_rectangle_ply(const fs::path& path, const Eigen::Vector3d& corner, co
                               "\nproperty list uchar int vertex_indices\nend_header\n" + vertices + faces);
 }
 
+// A table top 2.4 m wide at 0.75 m fills more of the cameras' views than the floor around it
+// (8 536 of 10 562 points within 3 cm of it against 1 870), but the floor lies below it, level
+// and wide enough: it is the floor.
+TEST_F(CalibrateCli, TakesTheFloorUnderATableTop) {
+  write_rectangle_ply(dir_ / "table000000.ply", {-1.2, -1.2, 0.75}, {2.4, 0, 0}, {0, 2.4, 0});
+  const fs::path capture = dir_ / "room";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 4 --resolution 320x240 --height 2.2 --subject " +
+                (dir_ / "table%06d.ply").string()).exit_code, 0);
+  level_like_truth(capture, read_rig(capture / "ground_truth" / "rig.json"), "", true, "table");
+}
+
 // Planes that face the cameras but are no floor: a ceiling over level cameras (which sees more of
 // it than of the floor), and a wall 0.75 m ahead of a single camera looking 54° down.
 TEST_F(CalibrateCli, TakesNeitherACeilingNorAWallForTheFloor) {
@@ -362,12 +359,7 @@ TEST_F(CalibrateCli, TakesNeitherACeilingNorAWallForTheFloor) {
   const fs::path ceiling = dir_ / "ceiling";
   ASSERT_EQ(run("synth --out " + ceiling.string() + " --frames 1 --cameras 4 --resolution 320x240 --target-height 1.3 --subject " +
                 (dir_ / "ceiling%06d.ply").string()).exit_code, 0);
-  const Rig ceiling_truth = read_rig(ceiling / "ground_truth" / "rig.json");
-  write_rig(ceiling / "rig.json", in_camera0_frame(ceiling_truth));
-  const fs::path out = dir_ / "level.json";
-  CommandResult r = run("calibrate floor " + ceiling.string() + " --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), ceiling_truth, true, "under a ceiling");
+  level_like_truth(ceiling, read_rig(ceiling / "ground_truth" / "rig.json"), "", true, "under a ceiling");
 
   // synth puts camera 0 at 45° on its circle (0.8 m here), looking at the circle's centre.
   const Eigen::Vector3d camera{0.8 * std::cos(std::numbers::pi / 4), 0.8 * std::sin(std::numbers::pi / 4), 0};
@@ -376,11 +368,7 @@ TEST_F(CalibrateCli, TakesNeitherACeilingNorAWallForTheFloor) {
   const fs::path wall = dir_ / "wall";
   ASSERT_EQ(run("synth --out " + wall.string() + " --frames 1 --cameras 1 --radius 0.8 --target-height 0.2 --resolution 320x240 --subject " +
                 (dir_ / "wall%06d.ply").string()).exit_code, 0);
-  const Rig wall_truth = read_rig(wall / "ground_truth" / "rig.json");
-  write_rig(wall / "rig.json", in_camera0_frame(wall_truth));
-  r = run("calibrate floor " + wall.string() + " --volume-half-width 1 --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  expect_levelled_like_truth(read_rig(out), wall_truth, false, "before a wall");
+  level_like_truth(wall, read_rig(wall / "ground_truth" / "rig.json"), " --volume-half-width 1", false, "before a wall");
 }
 
 // The same on the real dancer capture (Kinect noise and holes), from its true poses moved into
