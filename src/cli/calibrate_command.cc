@@ -232,9 +232,8 @@ void run_floor(FloorArgs& args) {
   args.options.first_frame = range.begin;
   args.options.end_frame = range.end;
   // A calibrated rig (calibrate extrinsics') seen with this capture's recording: its depth unit, sizes.
-  const Rig rig = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
-  const FloorResult result =
-      level_rig_to_floor(capture, rig, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig, args.options);
+  if (!args.rig.empty()) use_calibration_from(capture, args.rig);
+  const FloorResult result = level_rig_to_floor(capture, args.options);
   for (const std::string& file : result.unreadable) print_diagnostic("calibrate: warning: " + file + "; that frame's depth is not used");
 
   std::printf("floor: %d of %d depth points within %.0f mm of it, RMS %.1f mm\n", result.floor_points, result.points,

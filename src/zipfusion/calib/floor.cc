@@ -60,7 +60,8 @@ struct DepthPoints {
   std::vector<std::string> unreadable;
 };
 
-DepthPoints gather_depth_points(const Capture& capture, const Rig& rig, const FloorOptions& options) {
+DepthPoints gather_depth_points(const Capture& capture, const FloorOptions& options) {
+  const Rig& rig = capture.rig();
   DepthPoints out;
   const int end = std::min(options.end_frame, capture.frame_count());
   // The frames' pixels, at most 4·kMostPoints of them: the step grows with the frames.
@@ -79,8 +80,7 @@ DepthPoints gather_depth_points(const Capture& capture, const Rig& rig, const Fl
         for (int u = 0; u < image.depth.width; u += step) {
           const unsigned short raw = image.depth(u, v);
           if (raw == 0) continue;
-          // The frame's depth unit is the capture's, whatever rig it is seen through.
-          const auto z = static_cast<float>(raw * capture.rig().depth_unit_m);
+          const auto z = static_cast<float>(raw * rig.depth_unit_m);
           out.points.push_back(model.world_from_depth * unproject(model.depth_intrinsics, static_cast<float>(u), static_cast<float>(v), z).cast<double>());
           out.camera.push_back(c);
         }
@@ -230,23 +230,10 @@ void FloorOptions::validate() const {
   if (!(volume_height_m >= 0.1 && volume_height_m <= 20)) fail("volume-height", "must be in [0.1, 20] metres");
 }
 
-FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std::string& rig_source, const FloorOptions& options) {
+FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& options) {
   options.validate();
   const std::string source = capture.dir().string();
-  if (rig.cameras.size() != static_cast<size_t>(capture.camera_count())) {
-    throw InvalidInput(rig_source + ": cameras: has " + std::to_string(rig.cameras.size()) + " cameras, the capture has " +
-                       std::to_string(capture.camera_count()));
-  }
-  for (int c = 0; c < capture.camera_count(); ++c) {
-    const CameraModel &ours = rig.cameras[c], &captured = capture.rig().cameras[c];
-    const std::string field = rig_source + ": cameras[" + std::to_string(c) + "].";
-    if (ours.name != captured.name) throw InvalidInput(field + "name: \"" + ours.name + "\" is not the capture's \"" + captured.name + "\"");
-    const Intrinsics &k = ours.depth_intrinsics, &captured_k = captured.depth_intrinsics;
-    if (k.width != captured_k.width || k.height != captured_k.height) {
-      throw InvalidInput(field + "depth_intrinsics: " + std::to_string(k.width) + "x" + std::to_string(k.height) + ", but the capture's depth is " +
-                         std::to_string(captured_k.width) + "x" + std::to_string(captured_k.height));
-    }
-  }
+  const Rig& rig = capture.rig();
   if (options.first_frame >= capture.frame_count()) {
     throw InvalidInput(source + ": frames: the capture has " + std::to_string(capture.frame_count()) + " frames");
   }
@@ -269,7 +256,7 @@ FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std
   }
   if (agreeing < 0) up_axis = -up_axis;
 
-  const DepthPoints depth = gather_depth_points(capture, rig, options);
+  const DepthPoints depth = gather_depth_points(capture, options);
   FloorResult result;
   result.unreadable = depth.unreadable;
   result.points = static_cast<int>(depth.points.size());

@@ -58,10 +58,10 @@ struct FloorResult {
   std::vector<std::string> unreadable;  // "FILE: reason" for each depth file that could not be read (its frame not used)
 };
 
-//! Finds the floor in `capture`'s depth seen through `rig` (the capture's rig, or a calibrated one
-//! with the same cameras and depth sizes, named `rig_source` in errors) and re-expresses the rig in
-//! the floor's world frame. Throws InvalidInput naming the rig when its cameras differ, and naming
-//! the capture when its frames in range hold too little depth or no plane qualifies as the floor.
-FloorResult level_rig_to_floor(const Capture& capture, const Rig& rig, const std::string& rig_source, const FloorOptions& options = {});
+//! Finds the floor in `capture`'s depth, seen through its rig (a calibrated one with
+//! Capture::use_calibration), and re-expresses that rig in the floor's world frame. Throws
+//! InvalidInput naming the capture when its frames in range hold too little depth or no plane
+//! qualifies as the floor.
+FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& options = {});
 
 }  // namespace zipfusion
