@@ -108,11 +108,13 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.rig = make_live_rig(*in.live, &calibration, rig_path);
   }
   in.range = {0, max_frames};
-  in.source = live_frame_source(*in.live, {.max_frames = max_frames, .max_seconds = args.seconds, .observe = [&in](const LiveFrameSet& set) {
+  LiveSourceOptions source_options{.max_frames = max_frames, .max_seconds = args.seconds, .observe = [&in](const LiveFrameSet& set) {
     std::lock_guard lock(in.skew_mutex);
     in.skew_ms.resize(set.index + 1, 0);
     in.skew_ms[set.index] = set.skew_s * 1000;
-  }});
+  }};
+  source_options.depth_undistortion = depth_undistortion_maps(in.rig);  // a calibration's depth distortion, as a capture's reader applies it
+  in.source = live_frame_source(*in.live, std::move(source_options));
 }
 
 }  // namespace zipfusion::cli

@@ -315,6 +315,10 @@ TEST_F(RecordCli, BadOptionsGiveOneLineNamingTheOption) {
   const std::string out = (dir_ / "cap").string(), full = (kShared / "full").string();
   fs::create_directories(dir_ / "busy");
   { std::ofstream(dir_ / "busy" / "x") << "x"; }
+  Rig small = read_rig(kShared / "full" / "truth" / "rig.json");  // a calibration of 320x240 depth
+  small.cameras[0].depth_intrinsics = {.width = 320, .height = 240, .fx = 290, .fy = 290, .cx = 159.5, .cy = 119.5};
+  write_rig(dir_ / "small.json", small);
+  const std::string small_calibration = (dir_ / "small.json").string();
   const std::vector<Case> cases = {
       {false, "record --out " + out, "--devices, --replay: give exactly one", 2},
       {false, "record --devices all --replay " + full + " --out " + out, "--devices, --replay: give exactly one", 2},
@@ -329,6 +333,10 @@ TEST_F(RecordCli, BadOptionsGiveOneLineNamingTheOption) {
       {true, "record --devices 0, --out " + out, "--devices: \"0,\": an empty entry", 2},
       {true, "record --devices A00364A11700045A --out " + out, "--devices: serial A00364A11700045A: this libfreenect cannot list serials", 2},
       {true, "record --devices all --depth-format mm --out " + out, "--depth-format: this libfreenect delivers only raw 11-bit depth (fakenect)", 2},
+      {false, "record --replay " + full + " --rig " + small_calibration + " --out " + out,
+       small_calibration + ": cameras[0].depth_intrinsics: 320x240, but the device's images are 640x480", 2},
+      {false, "reconstruct --live --replay " + full + " --rig " + small_calibration + " --out " + out,
+       small_calibration + ": cameras[0].depth_intrinsics: 320x240, but the device's images are 640x480", 2},
       {false, "reconstruct --live --out " + out, "--devices, --replay: give exactly one", 2},
       {false, "reconstruct --live --replay " + full + " --frames 0:3 --out " + out, "--frames: with --live, the number of frame sets", 2},
       {false, "reconstruct --live --replay " + full + " --register once --out " + out, "--register once: needs a capture", 2},

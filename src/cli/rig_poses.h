@@ -27,25 +27,9 @@ inline Rig rig_with_calibration_from(const Rig& rig, const std::filesystem::path
   }
   Rig result = rig;
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
-    const CameraModel &ours = rig.cameras[c], &theirs = other.cameras[c];
-    const std::string field = source + ": cameras[" + std::to_string(c) + "].";
-    if (theirs.name != ours.name) throw InvalidInput(field + "name: \"" + theirs.name + "\" is not the capture's \"" + ours.name + "\"");
-    auto same_size = [&](const Intrinsics& a, const Intrinsics& b, const std::string& key) {
-      if (a.width != b.width || a.height != b.height) {
-        throw InvalidInput(field + key + ": " + std::to_string(a.width) + "x" + std::to_string(a.height) + ", but the capture's images are " +
-                           std::to_string(b.width) + "x" + std::to_string(b.height));
-      }
-    };
-    same_size(theirs.depth_intrinsics, ours.depth_intrinsics, "depth_intrinsics");
-    if (theirs.has_color() != ours.has_color()) {
-      throw InvalidInput(field + "color_intrinsics: " + (ours.has_color() ? "missing, but the capture's camera has colour" : "given, but the capture's camera has no colour"));
-    }
-    if (ours.has_color()) same_size(*theirs.color_intrinsics, *ours.color_intrinsics, "color_intrinsics");
-    CameraModel& model = result.cameras[c];
-    model.depth_intrinsics = theirs.depth_intrinsics;
-    model.color_intrinsics = theirs.color_intrinsics;
-    model.color_from_depth = theirs.color_from_depth;
-    model.world_from_depth = theirs.world_from_depth;
+    const std::string &ours = rig.cameras[c].name, &theirs = other.cameras[c].name;
+    if (theirs != ours) throw InvalidInput(source + ": cameras[" + std::to_string(c) + "].name: \"" + theirs + "\" is not the capture's \"" + ours + "\"");
+    take_camera_calibration(result.cameras[c], other, static_cast<int>(c), source, "the capture's");
   }
   if (other.volume) result.volume = other.volume;
   result.poses_trusted = other.poses_trusted;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <tuple>
 #include <cstdio>
+#include <stdexcept>
 #include <system_error>
 
 #include "zipfusion/core/error.h"
@@ -160,18 +161,7 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   return capture;
 }
 
-void Capture::build_depth_maps() {
-  depth_map_begin_.assign(1, 0);
-  depth_source_pixel_.clear();
-  for (const CameraModel& camera : rig_.cameras) {
-    const Intrinsics& k = camera.depth_intrinsics;
-    if (k.has_distortion && k.distortion != std::array<double, 5>{}) {
-      const std::vector<int> map = depth_undistortion_map(k);
-      depth_source_pixel_.insert(depth_source_pixel_.end(), map.begin(), map.end());
-    }
-    depth_map_begin_.push_back(depth_source_pixel_.size());
-  }
-}
+void Capture::build_depth_maps() { depth_undistortion_ = depth_undistortion_maps(rig_); }
 
 void Capture::use_calibration(const Rig& calibrated) {
   // What the frames are checked against must not change: the same cameras and image sizes.
@@ -197,6 +187,24 @@ std::vector<int> depth_undistortion_map(const Intrinsics& k) {
     }
   }
   return source_pixel;
+}
+
+std::vector<std::vector<int>> depth_undistortion_maps(const Rig& rig) {
+  std::vector<std::vector<int>> maps;
+  for (const CameraModel& camera : rig.cameras) {
+    const Intrinsics& k = camera.depth_intrinsics;
+    maps.push_back(k.has_distortion && k.distortion != std::array<double, 5>{} ? depth_undistortion_map(k) : std::vector<int>{});
+  }
+  return maps;
+}
+
+DepthImage undistort_depth(DepthImage recorded, const std::vector<std::vector<int>>& maps, int camera) {
+  if (camera >= static_cast<int>(maps.size()) || maps[camera].empty()) return recorded;
+  const std::vector<int>& source_pixel = maps[camera];
+  if (source_pixel.size() != recorded.data.size()) throw std::logic_error("undistort_depth: the map is for another image size");
+  DepthImage out(recorded.width, recorded.height);
+  for (int p = 0; p < static_cast<int>(out.data.size()); ++p) out.data[p] = undistorted_depth(recorded.data.data(), source_pixel.data(), p);
+  return out;
 }
 
 fs::path Capture::ground_truth_mesh_path(int frame) const {
@@ -235,13 +243,7 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
     out.has_depth = decode_or_leave_out([&] {
       DepthImage recorded = read_depth_png(depth_file);
       check_size(depth_file.string(), recorded.width, recorded.height, model.depth_intrinsics, "depth_intrinsics");
-      if (depth_map_begin_[camera + 1] > depth_map_begin_[camera]) {
-        const int* source_pixel = depth_source_pixel_.data() + depth_map_begin_[camera];
-        out.depth = DepthImage(recorded.width, recorded.height);
-        for (int p = 0; p < static_cast<int>(out.depth.data.size()); ++p) out.depth.data[p] = undistorted_depth(recorded.data.data(), source_pixel, p);
-      } else {
-        out.depth = std::move(recorded);
-      }
+      out.depth = undistort_depth(std::move(recorded), depth_undistortion_, camera);
     });
   } else if (options_.strict) {
     throw InvalidInput(depth_file.string() + ": missing frame");

@@ -101,20 +101,22 @@ class Capture {
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
   std::vector<std::vector<ColorFile>> color_file_;  // [camera][frame]
-  // Per pinhole pixel of every camera whose depth has distortion, the recorded pixel it takes its
-  // depth from (−1: none): camera c's map is [depth_map_begin_[c], depth_map_begin_[c + 1]), empty
-  // for a camera without distortion.
-  std::vector<int> depth_source_pixel_;
-  std::vector<size_t> depth_map_begin_;
+  std::vector<std::vector<int>> depth_undistortion_;  // depth_undistortion_maps(rig_)
 };
 
 //! For a depth camera with lens distortion: per pixel of the pinhole camera of the same fx, fy, cx,
 //! cy, the index of the recorded pixel nearest to where its ray falls, or −1 outside the image.
 std::vector<int> depth_undistortion_map(const Intrinsics& k);
+//! Per camera of the rig, depth_undistortion_map of its depth intrinsics, empty for a camera
+//! without distortion.
+std::vector<std::vector<int>> depth_undistortion_maps(const Rig& rig);
 //! Element function of the undistortion: pinhole pixel p of `recorded` through the map.
 inline std::uint16_t undistorted_depth(const std::uint16_t* recorded, const int* source_pixel, int p) {
   return source_pixel[p] >= 0 ? recorded[source_pixel[p]] : 0;
 }
+//! `recorded` through camera `camera`'s map of `maps` (depth_undistortion_maps); unchanged when
+//! that map is empty or missing.
+DepthImage undistort_depth(DepthImage recorded, const std::vector<std::vector<int>>& maps, int camera);
 
 //! Frame file name: 6-digit zero-padded index plus extension ("000042.png").
 std::string frame_file_name(int frame, const std::string& extension);

@@ -320,4 +320,24 @@ std::vector<Rigid3d> world_from_depth_poses(const Rig& rig) {
   return poses;
 }
 
+void take_camera_calibration(CameraModel& camera, const Rig& calibration, int c, const std::string& source, const std::string& owner) {
+  const CameraModel& calibrated = calibration.cameras.at(c);
+  const std::string field = source + ": cameras[" + std::to_string(c) + "].";
+  auto same_size = [&](const Intrinsics& theirs, const Intrinsics& ours, const std::string& key) {
+    if (theirs.width != ours.width || theirs.height != ours.height) {
+      throw InvalidInput(field + key + ": " + std::to_string(theirs.width) + "x" + std::to_string(theirs.height) + ", but " + owner + " images are " +
+                         std::to_string(ours.width) + "x" + std::to_string(ours.height));
+    }
+  };
+  same_size(calibrated.depth_intrinsics, camera.depth_intrinsics, "depth_intrinsics");
+  if (calibrated.has_color() != camera.has_color()) {
+    throw InvalidInput(field + "color_intrinsics: " + (camera.has_color() ? "missing, but " + owner + " camera has colour" : "given, but " + owner + " camera has no colour"));
+  }
+  if (camera.has_color()) same_size(*calibrated.color_intrinsics, *camera.color_intrinsics, "color_intrinsics");
+  camera.depth_intrinsics = calibrated.depth_intrinsics;
+  camera.color_intrinsics = calibrated.color_intrinsics;
+  camera.color_from_depth = calibrated.color_from_depth;
+  camera.world_from_depth = calibrated.world_from_depth;
+}
+
 }  // namespace zipfusion

@@ -69,4 +69,12 @@ std::string format_intrinsics(const Intrinsics& k);
 //! Every camera's world_from_depth, in rig order.
 std::vector<Rigid3d> world_from_depth_poses(const Rig& rig);
 
+//! Puts camera `c` of `calibration` (a rig.json read from `source`: what `calibrate` and
+//! `register` write) onto `camera`, the model of the camera whose frames are read: its depth and
+//! colour intrinsics (distortion included), color_from_depth and world_from_depth. The name and
+//! what belongs to the recording stay. Throws InvalidInput naming `source` and the field when the
+//! image sizes or the presence of colour differ, for the frames are what they are; `owner` names
+//! whose frames they are in that message ("the capture's", "the device's").
+void take_camera_calibration(CameraModel& camera, const Rig& calibration, int c, const std::string& source, const std::string& owner);
+
 }  // namespace zipfusion

@@ -130,7 +130,7 @@ Rig make_live_rig(const LiveRig& live, const Rig* calibration, const std::string
   }
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     rig.cameras[c].name = calibration->cameras[c].name;
-    rig.cameras[c].world_from_depth = calibration->cameras[c].world_from_depth;
+    take_camera_calibration(rig.cameras[c], *calibration, static_cast<int>(c), calibration_source, "the device's");
   }
   rig.volume = calibration->volume;
   rig.poses_trusted = calibration->poses_trusted;
@@ -168,7 +168,7 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
       std::optional<LiveFrame>& frame = live->cameras[c];
       if (!frame) continue;
       set.cameras[c].has_depth = true;
-      set.cameras[c].depth = std::move(frame->depth);
+      set.cameras[c].depth = undistort_depth(std::move(frame->depth), options.depth_undistortion, static_cast<int>(c));
       set.cameras[c].has_color = frame->has_color;
       if (frame->has_color) set.cameras[c].color = std::move(frame->color);
     }

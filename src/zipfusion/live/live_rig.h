@@ -85,9 +85,12 @@ class LiveRig {
 
 //! rig.json for a live rig: the cameras' models (names, intrinsics, color_from_depth) and fps,
 //! frame_count 0, depth_unit_m 0.001. With a calibration (another rig.json), camera i takes its
-//! name and world_from_depth from the calibration's camera i, and the rig its volume and
-//! poses_trusted; without one, poses are identity and poses_trusted false. Throws InvalidInput
-//! naming `calibration_source` when the camera counts differ.
+//! name and its whole calibration from the calibration's camera i (take_camera_calibration:
+//! intrinsics with their distortion, color_from_depth, world_from_depth), and the rig its volume
+//! and poses_trusted, as `reconstruct --rig` does with a capture; without one, the devices'
+//! intrinsics stay, poses are identity and poses_trusted false. Throws InvalidInput naming
+//! `calibration_source` and the field when the camera counts, image sizes or colour differ.
+//! Depth through distorted intrinsics must be undistorted: LiveSourceOptions::depth_undistortion.
 Rig make_live_rig(const LiveRig& rig, const Rig* calibration = nullptr, const std::string& calibration_source = "");
 
 struct LiveSourceOptions {
@@ -96,6 +99,9 @@ struct LiveSourceOptions {
   //! Called on the source thread with every set before it goes to the pipeline (statistics,
   //! skew reporting); empty = nothing.
   std::function<void(const LiveFrameSet&)> observe;
+  //! Per camera, the depth_undistortion_map of its calibrated depth intrinsics (empty or missing:
+  //! the depth as the device delivers it); depth_undistortion_maps(rig) makes them.
+  std::vector<std::vector<int>> depth_undistortion;
 };
 
 //! The type of pipeline.h's FrameSource, spelled out because the live layer sits below the

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/capture.h"
@@ -176,23 +177,29 @@ TEST_F(Recorder, CancelStopsCleanlyWithAValidCapture) {
   EXPECT_EQ(read_recorded_timestamps(dir_, capture.frame_count()).size(), static_cast<size_t>(result.frames_written[0] + result.frames_written[1]));
 }
 
-TEST_F(Recorder, CalibrationGivesNamesPosesAndVolume) {
+TEST_F(Recorder, CalibrationGivesNamesIntrinsicsPosesAndVolume) {
   auto live = scripted_rig({regular(3, 0), regular(3, 0)});
   Rig calibration = make_live_rig(*live);
   calibration.cameras[0].name = "left";
   calibration.cameras[1].name = "right";
   calibration.cameras[1].world_from_depth.translation() = Eigen::Vector3d(1, 2, 3);
-  calibration.cameras[1].depth_intrinsics.fx = 999;  // intrinsics come from the devices, not the calibration
+  calibration.cameras[1].depth_intrinsics.fx = 999;  // calibrated intrinsics replace the devices' nominal ones
+  calibration.cameras[1].color_intrinsics->cy = 24.25;
+  calibration.cameras[1].color_from_depth.translation() = Eigen::Vector3d(0.025, 0, 0);
   calibration.volume = Box3d{{-1, -1, 0}, {1, 1, 2}};
   calibration.poses_trusted = true;
   const Rig rig = make_live_rig(*live, &calibration, "cal.json");
   EXPECT_EQ(rig.cameras[1].name, "right");
   EXPECT_EQ(rig.cameras[1].world_from_depth.translation(), Eigen::Vector3d(1, 2, 3));
-  EXPECT_EQ(rig.cameras[1].depth_intrinsics.fx, 58);
+  EXPECT_EQ(rig.cameras[1].depth_intrinsics.fx, 999);
+  EXPECT_EQ(rig.cameras[1].color_intrinsics->cy, 24.25);
+  EXPECT_EQ(rig.cameras[1].color_from_depth.translation(), Eigen::Vector3d(0.025, 0, 0));
+  EXPECT_EQ(rig.cameras[0].depth_intrinsics.fx, 58);
   EXPECT_TRUE(rig.poses_trusted);
   record_capture(*live, rig, dir_, {});
   const Capture capture = Capture::open(dir_, {.strict = true});
   EXPECT_EQ(capture.rig().cameras[0].name, "left");
+  EXPECT_EQ(capture.rig().cameras[1].depth_intrinsics.fx, 999);  // the recording reads through the calibration
   EXPECT_TRUE(capture.rig().poses_trusted);
   ASSERT_TRUE(capture.rig().volume.has_value());
   EXPECT_EQ(capture.frame_count(), 3);
@@ -204,6 +211,55 @@ TEST_F(Recorder, CalibrationGivesNamesPosesAndVolume) {
     FAIL();
   } catch (const InvalidInput& e) {
     EXPECT_EQ(std::string(e.what()), "cal.json: cameras: has 1 cameras, but 2 devices are selected");
+  }
+}
+
+TEST_F(Recorder, ACalibrationOfOtherImagesIsOneLineNamingTheField) {
+  auto live = scripted_rig({regular(3, 0), regular(3, 0)});
+  const Rig devices = make_live_rig(*live);
+  auto message = [&](const std::function<void(Rig&)>& change) {
+    Rig calibration = devices;
+    change(calibration);
+    try {
+      make_live_rig(*live, &calibration, "cal.json");
+    } catch (const InvalidInput& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message([](Rig& r) { r.cameras[1].depth_intrinsics.width = 320; }),
+            "cal.json: cameras[1].depth_intrinsics: 320x48, but the device's images are 64x48");
+  EXPECT_EQ(message([](Rig& r) { r.cameras[0].color_intrinsics->height = 96; }),
+            "cal.json: cameras[0].color_intrinsics: 64x96, but the device's images are 64x48");
+  EXPECT_EQ(message([](Rig& r) { r.cameras[0].color_intrinsics.reset(); }),
+            "cal.json: cameras[0].color_intrinsics: missing, but the device's camera has colour");
+}
+
+// Live frames through a calibration whose depth has lens distortion are undistorted exactly as
+// the capture recorded through the same calibration reads them: the live view and a later
+// reconstruction of the recording see the same depth.
+TEST_F(Recorder, LiveDepthIsUndistortedAsTheRecordingReadsIt) {
+  auto recording = scripted_rig({regular(3, 0), regular(3, 0)});
+  Rig calibration = make_live_rig(*recording);
+  Intrinsics& k = calibration.cameras[1].depth_intrinsics;
+  k.distortion = {-0.25, 0.08, 0.002, -0.001, 0};
+  k.has_distortion = true;
+  const Rig rig = make_live_rig(*recording, &calibration, "cal.json");
+  record_capture(*recording, rig, dir_, {});
+  const Capture capture = Capture::open(dir_, {.strict = true});
+
+  auto live = scripted_rig({regular(3, 0), regular(3, 0)});
+  LiveFrameSource source = live_frame_source(*live, {.depth_undistortion = depth_undistortion_maps(make_live_rig(*live, &calibration, "cal.json"))});
+  for (int f = 0; f < 3; ++f) {
+    double decode_ms = 0;
+    const std::optional<FrameSet> set = source(decode_ms);
+    ASSERT_TRUE(set.has_value());
+    const FrameSet recorded = capture.load_frame(f);
+    EXPECT_EQ(set->cameras[0].depth.data, depth_of(0, f).data);  // no distortion: as delivered
+    EXPECT_EQ(set->cameras[1].depth.data, recorded.cameras[1].depth.data);
+    int moved = 0;
+    for (size_t p = 0; p < depth_of(1, f).data.size(); ++p) moved += set->cameras[1].depth.data[p] != depth_of(1, f).data[p];
+    EXPECT_GT(moved, 300) << "frame " << f;  // the distortion moved pixels: the test sees the map
   }
 }
 
