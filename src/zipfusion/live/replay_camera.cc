@@ -31,6 +31,7 @@ void ReplayOptions::validate() const {
   if ((loop || paced) && !(timeline.period_s > 0 && timeline.period_s < 3.2e7)) {
     throw InvalidInput("replay.timeline.period_s: must be in (0, 3.2e7) seconds");
   }
+  if (paced && !timeline.start) throw InvalidInput("replay.timeline.start: required when paced");
 }
 
 ReplayCamera::ReplayCamera(const std::filesystem::path& dir, const std::string& name, const ReplayOptions& options)
@@ -51,9 +52,15 @@ ReadStatus ReplayCamera::end(const std::string& reason) {
   return ReadStatus::kEnded;
 }
 
+std::chrono::steady_clock::time_point ReplayStart::at() {
+  std::lock_guard lock(mutex_);
+  if (!at_) at_ = std::chrono::steady_clock::now();
+  return *at_;
+}
+
 std::chrono::steady_clock::time_point ReplayCamera::due(double time_s) const {
   using namespace std::chrono;
-  return options_.timeline.start + duration_cast<steady_clock::duration>(duration<double>(time_s - options_.timeline.first_s));
+  return options_.timeline.start->at() + duration_cast<steady_clock::duration>(duration<double>(time_s - options_.timeline.first_s));
 }
 
 ReadStatus ReplayCamera::read(LiveFrame& frame, double timeout_s) {

@@ -17,7 +17,9 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,15 +28,30 @@
 
 namespace zipfusion {
 
+//! When a time line starts playing, shared by the rig's cameras: the first paced read of any of
+//! them fixes it (unless it was given), so that the time between opening the cameras and reading
+//! them (starting a server, a pipeline) does not pile up frames that would then come at once.
+class ReplayStart {
+ public:
+  ReplayStart() = default;
+  explicit ReplayStart(std::chrono::steady_clock::time_point at) : at_(at) {}
+  std::chrono::steady_clock::time_point at();  // the start; the first call without one sets it to now
+
+ private:
+  std::mutex mutex_;
+  std::optional<std::chrono::steady_clock::time_point> at_;
+};
+
 //! The time line the dumps of one rig share: from the earliest <seconds> of any dump to the
-//! latest, plus one frame period (a pass of a loop), and when it started playing.
+//! latest, plus one frame period (a pass of a loop), and when it starts playing.
 struct ReplayTimeline {
   double first_s = 0;   // recording time, seconds
   double period_s = 0;  // one pass, seconds
-  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  std::shared_ptr<ReplayStart> start = std::make_shared<ReplayStart>();  // shared by the copies
 };
 
-//! The time line of these dumps (their INDEX.txt; throws as read_fakenect_index), starting now.
+//! The time line of these dumps (their INDEX.txt; throws as read_fakenect_index), starting at the
+//! first paced read.
 ReplayTimeline replay_timeline(const std::vector<std::filesystem::path>& dumps, double fps);
 
 struct ReplayOptions {
@@ -43,8 +60,8 @@ struct ReplayOptions {
   //! Played again and again: pass k's times (time_s, device_timestamp) shifted by k·timeline.period_s,
   //! so that they keep rising and the rig's cameras stay grouped.
   bool loop = false;
-  //! A depth frame recorded at t is delivered at timeline.start + (t − timeline.first_s) (+ the
-  //! passes), as the device delivered it, not as fast as it is read.
+  //! A depth frame recorded at t is delivered at timeline.start->at() + (t − timeline.first_s)
+  //! (+ the passes), as the device delivered it, not as fast as it is read.
   bool paced = false;
   ReplayTimeline timeline;        // used by loop and paced: the rig's (replay_timeline)
 
