@@ -416,6 +416,15 @@ TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
     EXPECT_EQ(view["board_found"], !blank);
     EXPECT_EQ(view["rms_px"].is_null(), blank) << view;  // no board, no error of its own (not 0)
   }
+  // Squares counted instead of inner corners: one line saying what the images show, within
+  // seconds (the older detector searched each image for 9 s), and nothing written.
+  const fs::path wrong = dir_ / "wrong.json";
+  const CommandResult miscounted = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board 10x7 --out " + wrong.string());
+  EXPECT_EQ(miscounted.exit_code, 2);
+  EXPECT_EQ(line_count(miscounted.err), 1) << miscounted.err;
+  EXPECT_NE(miscounted.err.find("--board: 10x7 found in 0 of 9 images, but "), std::string::npos) << miscounted.err;
+  EXPECT_NE(miscounted.err.find(" shows a board of 9x6 inner corners"), std::string::npos) << miscounted.err;
+  EXPECT_FALSE(fs::exists(wrong));
 }
 
 TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {

@@ -8,6 +8,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,6 +29,12 @@ struct BoardOptions {
 //! The board's inner corners in an image, row by row, sub-pixel; nullopt when the whole board is
 //! not found.
 std::optional<std::vector<Eigen::Vector2d>> detect_board_corners(const ColorImage& image, const BoardOptions& board);
+
+//! The inner corners (columns, rows) of the largest checkerboard in the image whatever its size,
+//! ordered the way `board` is (the longer side first when board's columns are), or nullopt: for
+//! telling a user whose --board finds nothing what the images show (squares counted instead of
+//! inner corners is the usual slip). A board partly hidden may come out smaller than it is.
+std::optional<std::pair<int, int>> largest_board_in(const ColorImage& image, const BoardOptions& board);
 
 struct IntrinsicOptions {
   bool estimate_distortion = true;  // radial k1, k2 (p1, p2, k3 stay 0: they trade off against cx, cy and k1, k2)

@@ -233,7 +233,7 @@ std::vector<CheckerboardView> render_checkerboard_views(const CheckerboardOption
   auto board_color = [&](double x, double y) -> float {
     const int ix = static_cast<int>(std::floor(x / s)) + 1, iy = static_cast<int>(std::floor(y / s)) + 1;
     if (ix < -1 || iy < -1 || ix > o.inner_columns + 1 || iy > o.inner_rows + 1) return 90.0f;  // grey wall behind
-    if (ix < 0 || iy < 0 || ix > o.inner_columns || iy > o.inner_rows) return 225.0f;           // white margin
+    if (ix < 0 || iy < 0 || ix > o.inner_columns || iy > o.inner_rows) return o.white_margin ? 225.0f : 90.0f;  // margin
     return (ix + iy) % 2 == 0 ? 25.0f : 225.0f;
   };
 

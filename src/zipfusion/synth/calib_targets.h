@@ -59,6 +59,7 @@ struct CheckerboardOptions {
   int inner_columns = 9;          // inner corners along the board's x
   int inner_rows = 6;             // inner corners along the board's y
   double square_m = 0.025;        // square side, metres
+  bool white_margin = true;       // a square's width of white around the squares (false: printed to the edge, the wall behind)
   Intrinsics intrinsics{.width = 640, .height = 480, .fx = 530, .fy = 526, .cx = 322.5, .cy = 236.0};  // the truth
   // Board centre's distance from the camera, metres; 0 (both): from the board's size, so that it
   // fills 55 % down to 29 % of the image (0.45–0.85 m for the default board and camera).
