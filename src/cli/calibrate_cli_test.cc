@@ -349,7 +349,17 @@ TEST_F(CalibrateCli, TakesTheFloorUnderATableTop) {
   const fs::path capture = dir_ / "room";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 4 --resolution 320x240 --height 2.2 --subject " +
                 (dir_ / "table%06d.ply").string()).exit_code, 0);
-  level_like_truth(capture, read_rig(capture / "ground_truth" / "rig.json"), "", true, "table");
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  level_like_truth(capture, truth, "", true, "table");
+  const CommandResult r = run("calibrate floor " + capture.string() + " --out " + (dir_ / "noted.json").string());
+  EXPECT_NE(r.out.find("floor: taken under the largest plane, which lies 0.75 m above it (a table top; a stage the subject stands on: --floor largest)"),
+            std::string::npos)
+      << r.out;
+  // A stage the subject stands on: with --floor largest the top is the floor, 0.75 m up.
+  level_like_truth(capture, moved_rig(truth, Rigid3d(Eigen::Translation3d(0, 0, -0.75))), " --floor largest", true, "stage");
+  const CommandResult bad = run("calibrate floor " + capture.string() + " --floor top --out " + (dir_ / "bad.json").string());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--floor"), std::string::npos) << bad.err;
 }
 
 // Planes that face the cameras but are no floor: a ceiling over level cameras (which sees more of

@@ -41,6 +41,7 @@ struct FloorArgs {
   std::string capture, rig, frames, out;  // frames empty: FloorOptions' first frames
   FloorOptions options;
   bool no_volume = false;
+  std::string floor_plane = "lowest";  // --floor
 };
 
 std::vector<std::string> glob_files(const std::string& pattern) {
@@ -250,6 +251,7 @@ void run_extrinsics(ExtrinsicsArgs& args) {
 
 void run_floor(FloorArgs& args) {
   args.options.set_volume = !args.no_volume;
+  args.options.prefer_lower_plane = args.floor_plane == "lowest";
   args.options.validate();  // its own bounds first; the frames are checked against the capture below
   check_output_file(args.out);
   Capture capture = Capture::open(args.capture);
@@ -265,6 +267,10 @@ void run_floor(FloorArgs& args) {
 
   std::printf("floor: %d of %d depth points within %.0f mm of it, RMS %.1f mm\n", result.floor_points, result.points,
               1000 * args.options.inlier_distance_m, 1000 * result.floor_rms_m);
+  if (result.largest_plane_above_m > 0) {
+    std::printf("floor: taken under the largest plane, which lies %.2f m above it (a table top; a stage the subject stands on: --floor largest)\n",
+                result.largest_plane_above_m);
+  }
   std::cout << "camera      floor points  height m  tilt down deg  from the origin m\n";
   for (const FloorCameraReport& c : result.cameras) {
     std::printf("%-11s %12d  %8.3f  %13.2f  %17.3f\n", c.name.c_str(), c.floor_points, c.height_m, c.tilt_down_deg, c.distance_m);
@@ -319,6 +325,11 @@ void add_calibrate_command(CLI::App& app) {
           ->capture_default_str();
   CLI::Option* height = floor->add_option("--volume-height", fl->options.volume_height_m, "Volume's top above the floor, metres")->capture_default_str();
   floor->add_flag("--no-volume", fl->no_volume, "Write no capture volume")->excludes(half_width)->excludes(height);
+  floor->add_option("--floor", fl->floor_plane,
+                    "lowest: a level plane under the largest one with a fifth of its points is the floor (under a table top); "
+                    "largest: the largest plane is (a stage the subject stands on)")
+      ->check(CLI::IsMember({"lowest", "largest"}))
+      ->capture_default_str();
   floor->add_option("--inlier-distance", fl->options.inlier_distance_m, "Depth this close to a plane lies on it, metres")->capture_default_str();
   floor->callback([fl] { run_floor(*fl); });
 }

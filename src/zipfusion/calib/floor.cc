@@ -286,8 +286,10 @@ FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& optio
   // Each step down searches only the points below the last pick, a whole step lower: the steps
   // end, and depth noise under the floor is no lower floor.
   const double cos_parallel = std::cos(kParallelDeg * std::numbers::pi / 180);
+  const Plane largest_plane = best.plane;
+  bool stepped_down = false;
   std::vector<int> candidates = all;
-  for (int step = 0; step < kMostStepsDown; ++step) {
+  for (int step = 0; options.prefer_lower_plane && step < kMostStepsDown; ++step) {
     std::vector<int> below;
     for (int i : candidates) {
       if (best.plane.distance(depth.points[i]) < -kLowerPlaneStepM) below.push_back(i);
@@ -297,6 +299,7 @@ FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& optio
     });
     if (lower.count < std::max<double>(kFewestFloorPoints, kLowerPlaneShare * best.count)) break;
     best = lower;
+    stepped_down = true;
     candidates = std::move(below);
   }
   // Least squares on the inliers, twice (the second with the refined plane's inliers); the fit
@@ -348,6 +351,7 @@ FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& optio
     ++camera_floor_points[depth.camera[i]];
   }
   result.floor_rms_m = result.floor_points ? std::sqrt(squares / result.floor_points) : 0;
+  if (stepped_down) result.largest_plane_above_m = -largest_plane.distance(origin);  // the origin lies on the floor
 
   double nearest = std::numeric_limits<double>::infinity();
   for (size_t c = 0; c < result.rig.cameras.size(); ++c) {

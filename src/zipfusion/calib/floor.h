@@ -14,7 +14,8 @@
 //! cameras) lies within `max_tilt_deg` of the cameras' up direction (the principal direction of
 //! their image-up directions, turned the way most of them point: a camera mounted upside down
 //! among upright ones agrees, a ceiling or a wall ahead is no floor); a level plane at least
-//! 0.3 m below it with a fifth of its points is preferred (a table top above the floor); the pick
+//! 0.3 m below it with a fifth of its points is preferred (a table top above the floor; unless
+//! FloorOptions::prefer_lower_plane is false: a stage); the pick
 //! is refitted by least squares to its inliers and checked again. Thread safety: pure functions.
 
 #include <string>
@@ -31,6 +32,10 @@ struct FloorOptions {
   double inlier_distance_m = 0.03;     // RANSAC: a point this close to a plane is on it (a Kinect's noise at 3 m is ~2.5 cm)
   double max_tilt_deg = 60;            // a floor's normal lies within this of the cameras' up axis (degrees)
   double min_camera_height_m = 0.2;    // every camera stands at least this high above the floor
+  //! Below the largest plane that can be the floor, a level plane with a fifth of its points is
+  //! the floor (the floor under a table top). false: the largest plane is (a stage the subject
+  //! stands on, with the room's floor around and below it; a floor around a pit).
+  bool prefer_lower_plane = true;
   int ransac_iterations = 500;        // planes tried
   unsigned seed = 1;                  // of RANSAC's draws (the result is the same for the same input)
   bool set_volume = true;              // write the capture volume below (else keep none)
@@ -54,6 +59,9 @@ struct FloorResult {
   int points = 0;              // depth points searched
   int floor_points = 0;        // within inlier_distance_m of the fitted floor
   double floor_rms_m = 0;      // of those points' distances to it
+  //! How far above the floor the largest plane that could be the floor lies: 0 when the floor is
+  //! that plane, else the table top (or stage) the floor was taken from below.
+  double largest_plane_above_m = 0;
   std::vector<FloorCameraReport> cameras;
   std::vector<std::string> unreadable;  // "FILE: reason" for each depth file that could not be read (its frame not used)
 };
