@@ -295,7 +295,7 @@ void add_bench_command(CLI::App& app) {
   const CLI::Option* frames = cmd->add_option("--frames", args->frames, "Frame sets to load (the first N; by default as many of 30 as the capture has), decoded once")
                                   ->capture_default_str();
   cmd->add_option("--repeat", args->repeat, "Passes over the frame sets per configuration")->capture_default_str();
-  cmd->add_option("--rig", args->rig, "Take camera poses from this rig.json (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--rig", args->rig, "Take the calibration (poses, intrinsics, volume) from this rig.json (e.g. CAPTURE/ground_truth/rig.json)");
   cmd->add_option("--soak", args->soak, "Also reconstruct this many frame sets in a row and report resident memory at 100 and at the end")
       ->capture_default_str();
   add_threads_option(cmd, args->threads);

@@ -432,8 +432,22 @@ TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   const CommandResult miscounted = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board 10x7 --out " + wrong.string());
   EXPECT_EQ(miscounted.exit_code, 2);
   EXPECT_EQ(line_count(miscounted.err), 1) << miscounted.err;
-  EXPECT_NE(miscounted.err.find("--board: 10x7 found in 0 of 9 images, but "), std::string::npos) << miscounted.err;
-  EXPECT_NE(miscounted.err.find(" shows a board of 9x6 inner corners"), std::string::npos) << miscounted.err;
+  EXPECT_NE(miscounted.err.find("--board: 10x7 found in none of 9 images; the largest board seen, in "), std::string::npos) << miscounted.err;
+  EXPECT_NE(miscounted.err.find(", has 9x6 inner corners"), std::string::npos) << miscounted.err;
+  EXPECT_FALSE(fs::exists(wrong));
+  // A --board smaller than the board would match a piece of it (and calibrate fx 8678 against 530):
+  // no piece is taken for the board, and the error says what the images show.
+  for (const std::string smaller : {"5x4", "8x5"}) {
+    const CommandResult piece = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board " + smaller + " --out " + wrong.string());
+    EXPECT_EQ(piece.exit_code, 2) << smaller << ": " << piece.out;
+    EXPECT_NE(piece.err.find("--board: " + smaller + " found in none of 9 images; the largest board seen, in "), std::string::npos) << piece.err;
+    EXPECT_NE(piece.err.find(", has 9x6 inner corners"), std::string::npos) << piece.err;
+    EXPECT_FALSE(fs::exists(wrong));
+  }
+  // 3x3 pieces of a steeply tilted board, whose grid the detector cannot grow, still pass (1 of
+  // these 9 views): too few to calibrate.
+  const CommandResult tiny = run("calibrate intrinsics --images '" + boards.string() + "/*.png' --board 3x3 --out " + wrong.string());
+  EXPECT_EQ(tiny.exit_code, 2) << tiny.out;
   EXPECT_FALSE(fs::exists(wrong));
 }
 

@@ -77,19 +77,16 @@ BoardOptions parse_board(const std::string& text, double square_m) {
 // Fewer views used than this get a warning (Zhang's method needs 3; the principal point needs more).
 constexpr int kFewestViewsAdvised = 10;
 
-// Too few boards found: when the images show a board of another size, --board is wrong (squares
-// counted instead of inner corners, or another board), and the error says what they show.
+// No board found at all: when the images show a board of another size, --board is likely wrong
+// (squares counted instead of inner corners, or another board), and the error says what they
+// show. With some boards found, --board is right and the usual too-few error stands.
 void explain_missing_boards(const std::vector<std::string>& files, const std::vector<std::optional<std::vector<Eigen::Vector2d>>>& corners,
-                            const BoardOptions& board, int min_views) {
-  const auto found = std::count_if(corners.begin(), corners.end(), [](const auto& c) { return c.has_value(); });
-  if (found >= min_views) return;
+                            const BoardOptions& board) {
+  if (std::any_of(corners.begin(), corners.end(), [](const auto& c) { return c.has_value(); })) return;
   constexpr int kImagesProbed = 3;  // a board partly hidden in one of them looks smaller: the largest counts
   std::optional<std::pair<int, int>> largest;
   std::string shown_in;
-  int probed = 0;
-  for (size_t i = 0; i < files.size() && probed < kImagesProbed; ++i) {
-    if (corners[i]) continue;
-    ++probed;
+  for (size_t i = 0; i < files.size() && static_cast<int>(i) < kImagesProbed; ++i) {
     const std::optional<std::pair<int, int>> size = largest_board_in(read_color_image(files[i]), board);
     if (size && (!largest || size->first * size->second > largest->first * largest->second)) {
       largest = size;
@@ -97,10 +94,10 @@ void explain_missing_boards(const std::vector<std::string>& files, const std::ve
     }
   }
   if (!largest || *largest == std::pair{board.inner_columns, board.inner_rows}) return;
-  throw InvalidInput("--board: " + std::to_string(board.inner_columns) + "x" + std::to_string(board.inner_rows) + " found in " +
-                     std::to_string(found) + " of " + std::to_string(files.size()) + " images, but " + shown_in + " shows a board of " +
-                     std::to_string(largest->first) + "x" + std::to_string(largest->second) +
-                     " inner corners (--board counts inner corners: squares - 1 each way)");
+  throw InvalidInput("--board: " + std::to_string(board.inner_columns) + "x" + std::to_string(board.inner_rows) + " found in none of " +
+                     std::to_string(files.size()) + " images; the largest board seen, in " + shown_in + ", has " + std::to_string(largest->first) +
+                     "x" + std::to_string(largest->second) +
+                     " inner corners (a board partly hidden looks smaller; --board counts inner corners: squares - 1 each way)");
 }
 
 void run_intrinsics(const IntrinsicsArgs& args) {
@@ -122,7 +119,7 @@ void run_intrinsics(const IntrinsicsArgs& args) {
     show_progress("corners", static_cast<int>(i) + 1, static_cast<int>(files.size()));
   }
   const IntrinsicOptions options{.estimate_distortion = !args.no_distortion};
-  explain_missing_boards(files, corners, board, options.min_views);
+  explain_missing_boards(files, corners, board);
   const IntrinsicResult result = calibrate_intrinsics(corners, files, width, height, board, options);
 
   nlohmann::json views = nlohmann::json::array();

@@ -17,7 +17,8 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "column pass, 2-3x faster) or none")
       ->check(CLI::IsMember({"bilateral", "bilateral-separable", "none"}))
       ->capture_default_str();
-  cmd->add_option("--rig", args.rig, "Take camera poses from this rig.json instead (e.g. CAPTURE/ground_truth/rig.json)");
+  cmd->add_option("--rig", args.rig, "Take the calibration (poses, intrinsics with distortion, color_from_depth, volume) from this rig.json instead (e.g. "
+                  "CAPTURE/ground_truth/rig.json, calibrate's output); with --live, the devices' camera i takes camera i's");
   cmd->add_option("--register", args.register_mode,
                   "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on up to 16 frames spread over the range, before the first), off, "
                   "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "

@@ -117,8 +117,9 @@ void add_record_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--frames", args->options.max_frames, "Frame sets to record (0 = no limit)")->capture_default_str();
   cmd->add_option("--rig", args->rig,
-                  "Calibration rig.json: camera i takes its name and world pose from it (and the rig its volume and poses_trusted); "
-                  "without it poses are identity");
+                  "Calibration rig.json: camera i takes its name and whole calibration from it (intrinsics with distortion, "
+                  "color_from_depth, world pose; the rig its volume and poses_trusted), written into the capture; without it the "
+                  "devices' intrinsics and identity poses");
   cmd->add_option("--color-format", args->color_format, "Colour files: jpg or png")->check(CLI::IsMember({"jpg", "png"}))->capture_default_str();
   cmd->add_option("--jpeg-quality", args->options.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
   add_threads_option(cmd, args->options.num_threads, "Encoding threads (0 = all cores)");

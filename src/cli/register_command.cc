@@ -137,7 +137,7 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--out", args->out, "Refined rig.json to write")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B to draw from (A included, B excluded; default all)");
   cmd->add_option("--max-frames", args->max_frames, "Frames used, spread evenly over --frames")->capture_default_str();
-  cmd->add_option("--rig", args->rig, "Start from the poses of this rig.json instead of the capture's");
+  cmd->add_option("--rig", args->rig, "Start from the calibration (poses, intrinsics, volume) of this rig.json instead of the capture's");
   cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth sampled every 2^L pixels of a 640x480 Kinect (every 2^L*f/580 of a camera of focal length f)")->capture_default_str();
   cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution; so is 1 for 320x240)")->capture_default_str();
   cmd->add_option("--iterations", o.iterations_per_level, "Iterations per level")->capture_default_str();

@@ -29,6 +29,36 @@ class SeededOpenCvRng {
   std::uint64_t saved_;
 };
 
+// A board's inner corners, either way round.
+struct BoardSize {
+  int longer = 0, shorter = 0;
+  explicit BoardSize(cv::Size size) : longer(std::max(size.width, size.height)), shorter(std::min(size.width, size.height)) {}
+  bool exceeds(const BoardSize& other) const { return longer > other.longer || shorter > other.shorter; }
+  bool covers(const BoardSize& other) const { return longer >= other.longer && shorter >= other.shorter; }
+};
+
+// The whole grid of inner corners that the board of `seed` size OpenCV's sector-based detector
+// finds belongs to (CALIB_CB_LARGER grows it; its meta output is the grid), or nullopt. Uses the
+// thread's OpenCV random numbers: seed them (SeededOpenCvRng).
+std::optional<BoardSize> grown_grid(const cv::Mat& gray, cv::Size seed) {
+  std::vector<cv::Point2f> corners;
+  cv::Mat meta;
+  if (!cv::findChessboardCornersSB(gray, seed, corners, cv::CALIB_CB_LARGER, meta) || meta.empty()) return std::nullopt;
+  return BoardSize(meta.size());
+}
+
+// The growing draws on OpenCV's random numbers and now and then stops short: the largest grid of
+// a few fixed draws (each seeded, the thread's generator restored after).
+std::optional<BoardSize> largest_grown_grid(const cv::Mat& gray, cv::Size seed) {
+  std::optional<BoardSize> largest;
+  for (std::uint64_t draw = 0; draw < kBoardSizeDraws; ++draw) {
+    const SeededOpenCvRng seeded(kOpenCvSeed + draw);
+    const std::optional<BoardSize> grid = grown_grid(gray, seed);
+    if (grid && (!largest || grid->longer * grid->shorter > largest->longer * largest->shorter)) largest = grid;
+  }
+  return largest;
+}
+
 // The shortest distance between neighbouring corners of the grid (along a row or a column), pixels.
 double shortest_corner_spacing(const std::vector<cv::Point2f>& corners, cv::Size pattern) {
   double shortest = std::numeric_limits<double>::infinity();
@@ -104,20 +134,19 @@ std::optional<std::vector<Eigen::Vector2d>> detect_board_corners(const ColorImag
   cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
   const cv::Size pattern(board.inner_columns, board.inner_rows);
   std::vector<cv::Point2f> corners;
-  // OpenCV's sector-based detector first: it finds boards of 5 px squares at 320x240, which the
-  // older quadrilateral detector missed in 6 of 20 views, and gives up in 0.1 s on a board of
-  // another size, which the older one searched for 9 s an image (a wrong --board). The older one
-  // is the fallback for an image in which the new one sees no board at all.
+  // OpenCV's sector-based detector: it finds boards of 5 px squares at 320x240, which the older
+  // quadrilateral detector (findChessboardCorners) missed in 6 of 20 views, and gives up in 0.1 s
+  // on a board larger than the pattern, which the older one searched for 9 s an image (a wrong
+  // --board). The older one is no fallback for that reason: a board of squares blurred over 3 px
+  // it found in 2 of the 3 views the new one missed (17 of 20), but only 12 of the 20 itself.
   const SeededOpenCvRng seeded(kOpenCvSeed);
-  if (!cv::findChessboardCornersSB(gray, pattern, corners)) {
-    std::vector<cv::Point2f> any_board;
-    if (cv::findChessboardCornersSB(gray, cv::Size(kFewestBoardCorners, kFewestBoardCorners), any_board, cv::CALIB_CB_LARGER)) return std::nullopt;
-    if (!cv::findChessboardCorners(gray, pattern, corners, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK)) {
-      return std::nullopt;
-    }
-  }
-  // Both detectors' corners are refined by cornerSubPix (the sector-based detector's own were
-  // 0.3-1 % off in fx and cy on the synthetic boards, these 0.1 %), in a window that stays inside
+  if (!cv::findChessboardCornersSB(gray, pattern, corners)) return std::nullopt;
+  // It also matches a piece of a larger board (a --board of 5x4 on a 9x6 one: fx 8678 against
+  // 530, written): the grid grown from what it found must be the pattern itself.
+  const std::optional<BoardSize> grid = largest_grown_grid(gray, pattern);
+  if (grid && grid->exceeds(BoardSize(pattern))) return std::nullopt;
+  // The corners are refined by cornerSubPix (the sector-based detector's own were 0.3-1 % off
+  // in fx and cy on the synthetic boards, these 0.1 %), in a window that stays inside
   // one square: 11x11 for squares of 12 px and more, smaller for smaller squares (one over the
   // next corner pulled small boards 1.6 px off).
   const int half_window = std::clamp(static_cast<int>(0.4 * shortest_corner_spacing(corners, pattern)), 2, 5);
@@ -131,25 +160,13 @@ std::optional<std::vector<Eigen::Vector2d>> detect_board_corners(const ColorImag
 std::optional<std::pair<int, int>> largest_board_in(const ColorImage& image, const BoardOptions& board) {
   const int smallest = kFewestBoardCorners;
   if (image.width < 4 * (smallest + 1) || image.height < 4 * (smallest + 1)) return std::nullopt;
-  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<Rgb8*>(image.data.data())), gray, meta;
+  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<Rgb8*>(image.data.data())), gray;
   cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
-  std::vector<cv::Point2f> corners;
-  // CALIB_CB_LARGER: the smallest board, grown to the whole grid it belongs to; meta is that grid.
-  // The growing draws on OpenCV's random numbers and now and then stops at the seed board: the
-  // largest of a few fixed draws.
-  std::optional<cv::Size> largest;
-  for (std::uint64_t draw = 0; draw < kBoardSizeDraws; ++draw) {
-    const SeededOpenCvRng seeded(kOpenCvSeed + draw);
-    if (cv::findChessboardCornersSB(gray, cv::Size(smallest, smallest), corners, cv::CALIB_CB_LARGER, meta) && !meta.empty() &&
-        (!largest || meta.total() > largest->area())) {
-      largest = meta.size();
-    }
-  }
+  const std::optional<BoardSize> largest = largest_grown_grid(gray, cv::Size(smallest, smallest));
   if (!largest) return std::nullopt;
   // Either way round, as --board is given.
   const bool columns_first = board.inner_columns >= board.inner_rows;
-  const int longer = std::max(largest->width, largest->height), shorter = std::min(largest->width, largest->height);
-  return columns_first ? std::pair{longer, shorter} : std::pair{shorter, longer};
+  return columns_first ? std::pair{largest->longer, largest->shorter} : std::pair{largest->shorter, largest->longer};
 }
 
 IntrinsicResult calibrate_intrinsics(const std::vector<std::optional<std::vector<Eigen::Vector2d>>>& corners,

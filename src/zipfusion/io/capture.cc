@@ -5,7 +5,6 @@
 #include <cmath>
 #include <tuple>
 #include <cstdio>
-#include <stdexcept>
 #include <system_error>
 
 #include "zipfusion/core/error.h"
@@ -201,7 +200,10 @@ std::vector<std::vector<int>> depth_undistortion_maps(const Rig& rig) {
 DepthImage undistort_depth(DepthImage recorded, const std::vector<std::vector<int>>& maps, int camera) {
   if (camera >= static_cast<int>(maps.size()) || maps[camera].empty()) return recorded;
   const std::vector<int>& source_pixel = maps[camera];
-  if (source_pixel.size() != recorded.data.size()) throw std::logic_error("undistort_depth: the map is for another image size");
+  if (source_pixel.size() != recorded.data.size()) {
+    throw InvalidInput("camera " + std::to_string(camera) + ": a depth frame of " + std::to_string(recorded.width) + "x" + std::to_string(recorded.height) +
+                       ", but its depth_intrinsics undistort " + std::to_string(source_pixel.size()) + " pixels");
+  }
   DepthImage out(recorded.width, recorded.height);
   for (int p = 0; p < static_cast<int>(out.data.size()); ++p) out.data[p] = undistorted_depth(recorded.data.data(), source_pixel.data(), p);
   return out;
