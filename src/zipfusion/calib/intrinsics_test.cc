@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <opencv2/imgproc.hpp>
 #include <random>
 
@@ -15,9 +17,13 @@
 namespace zipfusion {
 namespace {
 
+// The rendered boards' default: 9x6 inner corners of 25 mm.
+const BoardOptions kBoard{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+
 struct Detected {
   std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners;
   std::vector<std::string> names;
+  int found() const { return static_cast<int>(std::count_if(corners.begin(), corners.end(), [](const auto& c) { return c.has_value(); })); }
 };
 
 Detected detect(const std::vector<CheckerboardView>& views, const BoardOptions& board) {
@@ -31,11 +37,9 @@ Detected detect(const std::vector<CheckerboardView>& views, const BoardOptions& 
 TEST(Intrinsics, RecoversTheTrueIntrinsicsWithinHalfAPercent) {
   const CheckerboardOptions options{.views = 15};
   const std::vector<CheckerboardView> views = render_checkerboard_views(options);
-  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const BoardOptions& board = kBoard;
   const Detected d = detect(views, board);
-  int found = 0;
-  for (const auto& c : d.corners) found += c.has_value();
-  EXPECT_GE(found, 13);
+  EXPECT_GE(d.found(), 13);
   const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 640, 480, board);
   const Intrinsics& t = options.intrinsics;
   const Intrinsics& k = result.intrinsics;
@@ -63,7 +67,7 @@ TEST(Intrinsics, SmallSquaresAtQuarterResolutionAreFoundAndRefinedWithinTheirSqu
   Intrinsics& t = options.intrinsics;
   t = {.width = 320, .height = 240, .fx = t.fx / 2, .fy = t.fy / 2, .cx = t.cx / 2, .cy = t.cy / 2};
   const std::vector<CheckerboardView> views = render_checkerboard_views(options);
-  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const BoardOptions& board = kBoard;
   const Detected d = detect(views, board);
   const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 320, 240, board);
   const Intrinsics& k = result.intrinsics;
@@ -85,7 +89,7 @@ TEST(Intrinsics, SmallSquaresAtQuarterResolutionAreFoundAndRefinedWithinTheirSqu
 TEST(Intrinsics, ABoardWithoutAWhiteMarginIsFound) {
   const CheckerboardOptions options{.views = 12, .white_margin = false};
   const std::vector<CheckerboardView> views = render_checkerboard_views(options);
-  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const BoardOptions& board = kBoard;
   const Detected d = detect(views, board);
   for (size_t v = 0; v < views.size(); ++v) EXPECT_TRUE(d.corners[v].has_value()) << v;
   const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 640, 480, board);
@@ -103,11 +107,9 @@ TEST(Intrinsics, FindsBlurredBoards) {
     cv::Mat rgb(view.image.height, view.image.width, CV_8UC3, view.image.data.data());
     cv::GaussianBlur(rgb, rgb, cv::Size(0, 0), 3);
   }
-  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const BoardOptions& board = kBoard;
   const Detected d = detect(views, board);
-  int found = 0;
-  for (const auto& c : d.corners) found += c.has_value();
-  EXPECT_GE(found, 19);
+  EXPECT_GE(d.found(), 19);
   const IntrinsicResult result = calibrate_intrinsics(d.corners, d.names, 640, 480, board);
   const Intrinsics &k = result.intrinsics, &t = options.intrinsics;
   EXPECT_NEAR(k.fx, t.fx, 0.005 * t.fx);
@@ -201,7 +203,7 @@ TEST(Intrinsics, CopiesOfOneViewAreOnePose) {
 TEST(Intrinsics, AFitThatFoldsInsideTheImageIsAnError) {
   const Intrinsics truth{.width = 640, .height = 480, .fx = 580, .fy = 580, .cx = 319.5, .cy = 239.5, .distortion = {-0.9, 0, 0, 0, 0}, .has_distortion = true};
   ASSERT_GT(distortion_fold_share(truth), 0.8);
-  const BoardOptions board{.inner_columns = 9, .inner_rows = 6, .square_m = 0.025};
+  const BoardOptions& board = kBoard;
   std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners;
   std::vector<std::string> names;
   for (int v = 0; v < 8; ++v) {
