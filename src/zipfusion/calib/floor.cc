@@ -351,7 +351,8 @@ FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& optio
     ++camera_floor_points[depth.camera[i]];
   }
   result.floor_rms_m = result.floor_points ? std::sqrt(squares / result.floor_points) : 0;
-  if (stepped_down) result.largest_plane_above_m = -largest_plane.distance(origin);  // the origin lies on the floor
+  // Both planes fitted alike (least squares), measured where the origin lies on the floor.
+  if (stepped_down) result.largest_plane_above_m = -refit(depth.points, largest_plane, options.inlier_distance_m).distance(origin);
 
   double nearest = std::numeric_limits<double>::infinity();
   for (size_t c = 0; c < result.rig.cameras.size(); ++c) {

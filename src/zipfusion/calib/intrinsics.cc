@@ -202,7 +202,7 @@ IntrinsicResult calibrate_intrinsics(const std::vector<std::optional<std::vector
   }
   auto too_few = [&](size_t usable, const std::string& why) {
     if (static_cast<int>(usable) < options.min_views) {
-      throw InvalidInput("calibrate intrinsics: " + std::to_string(usable) + " usable board views " + why + ", need at least " +
+      throw InvalidInput("calibrate intrinsics: " + std::to_string(usable) + (usable == 1 ? " usable board view " : " usable board views ") + why + ", need at least " +
                          std::to_string(options.min_views));
     }
   };

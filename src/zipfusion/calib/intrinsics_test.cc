@@ -185,7 +185,7 @@ TEST(Intrinsics, CopiesOfOneViewAreOnePose) {
     calibrate_intrinsics(copies, {"a", "b", "c", "d"}, 640, 480, board);
     FAIL() << "four copies of one view must not calibrate";
   } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("1 usable board views (the board was found in 4 of 4 images, 3 of them copies of another view)"),
+    EXPECT_NE(std::string(e.what()).find("1 usable board view (the board was found in 4 of 4 images, 3 of them copies of another view)"),
               std::string::npos)
         << e.what();
   }
