@@ -34,8 +34,17 @@ struct BoardSize {
   int longer = 0, shorter = 0;
   explicit BoardSize(cv::Size size) : longer(std::max(size.width, size.height)), shorter(std::min(size.width, size.height)) {}
   bool exceeds(const BoardSize& other) const { return longer > other.longer || shorter > other.shorter; }
-  bool covers(const BoardSize& other) const { return longer >= other.longer && shorter >= other.shorter; }
 };
+
+// `image` in grey for OpenCV's board detectors, or nullopt when it is too small for a board of
+// `pattern` inner corners: the squares must be a few pixels wide to be found at all, and OpenCV's
+// adaptive threshold fails an assertion on images of 8×8 pixels and less.
+std::optional<cv::Mat> gray_for_board(const ColorImage& image, cv::Size pattern) {
+  if (image.width < 4 * (pattern.width + 1) || image.height < 4 * (pattern.height + 1)) return std::nullopt;
+  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<Rgb8*>(image.data.data())), gray;
+  cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+  return gray;
+}
 
 // The whole grid of inner corners that the board of `seed` size OpenCV's sector-based detector
 // finds belongs to (CALIB_CB_LARGER grows it; its meta output is the grid), or nullopt. Uses the
@@ -127,12 +136,10 @@ void IntrinsicOptions::validate() const {
 
 std::optional<std::vector<Eigen::Vector2d>> detect_board_corners(const ColorImage& image, const BoardOptions& board) {
   board.validate();
-  // The board's squares must be a few pixels wide to be found at all; OpenCV's adaptive threshold
-  // fails an assertion on images of 8×8 pixels and less.
-  if (image.width < 4 * (board.inner_columns + 1) || image.height < 4 * (board.inner_rows + 1)) return std::nullopt;
-  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<Rgb8*>(image.data.data())), gray;
-  cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
   const cv::Size pattern(board.inner_columns, board.inner_rows);
+  const std::optional<cv::Mat> gray_image = gray_for_board(image, pattern);
+  if (!gray_image) return std::nullopt;
+  const cv::Mat& gray = *gray_image;
   std::vector<cv::Point2f> corners;
   // OpenCV's sector-based detector: it finds boards of 5 px squares at 320x240, which the older
   // quadrilateral detector (findChessboardCorners) missed in 6 of 20 views, and gives up in 0.1 s
@@ -159,11 +166,10 @@ std::optional<std::vector<Eigen::Vector2d>> detect_board_corners(const ColorImag
 }
 
 std::optional<std::pair<int, int>> largest_board_in(const ColorImage& image, const BoardOptions& board) {
-  const int smallest = kFewestBoardCorners;
-  if (image.width < 4 * (smallest + 1) || image.height < 4 * (smallest + 1)) return std::nullopt;
-  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<Rgb8*>(image.data.data())), gray;
-  cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
-  const std::optional<BoardSize> largest = largest_grown_grid(gray, cv::Size(smallest, smallest));
+  const cv::Size smallest(kFewestBoardCorners, kFewestBoardCorners);
+  const std::optional<cv::Mat> gray = gray_for_board(image, smallest);
+  if (!gray) return std::nullopt;
+  const std::optional<BoardSize> largest = largest_grown_grid(*gray, smallest);
   if (!largest) return std::nullopt;
   // Either way round, as --board is given.
   const bool columns_first = board.inner_columns >= board.inner_rows;

@@ -156,11 +156,9 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
     check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
-  capture.build_depth_maps();
+  capture.depth_undistortion_ = depth_undistortion_maps(capture.rig_);
   return capture;
 }
-
-void Capture::build_depth_maps() { depth_undistortion_ = depth_undistortion_maps(rig_); }
 
 void Capture::use_calibration(const Rig& calibrated) {
   // What the frames are checked against must not change: the same cameras and image sizes.
@@ -173,7 +171,7 @@ void Capture::use_calibration(const Rig& calibrated) {
   }
   if (!same) throw InvalidInput(dir_.string() + ": a calibration of other cameras or image sizes than rig.json's");
   rig_ = calibrated;
-  build_depth_maps();
+  depth_undistortion_ = depth_undistortion_maps(rig_);
 }
 
 std::vector<int> depth_undistortion_map(const Intrinsics& k) {

@@ -92,7 +92,6 @@ class Capture {
   void use_calibration(const Rig& calibrated);
 
  private:
-  void build_depth_maps();  // from rig_'s depth intrinsics
   std::filesystem::path dir_;
   Rig rig_;
   CaptureOpenOptions options_;
