@@ -23,6 +23,21 @@ using testing::line_count;
 
 class CalibrateCli : public testing::CliTest {
  protected:
+  // The factor in calibrate extrinsics' "the depth cameras' surfaces meet with the rig at F times
+  // the size", or 0 when it printed none.
+  static double depth_scale_in(const std::string& out) {
+    const std::string before = "surfaces meet with the rig at ";
+    const size_t at = out.find(before);
+    return at == std::string::npos ? 0 : std::stod(out.substr(at + before.size()));
+  }
+  // The largest distance of a camera from where the truth has it, metres.
+  static double worst_position_m(const Rig& calibrated, const Rig& truth) {
+    double worst = 0;
+    for (size_t c = 0; c < truth.cameras.size(); ++c) {
+      worst = std::max(worst, (calibrated.cameras[c].world_from_depth.translation() - truth.cameras[c].world_from_depth.translation()).norm());
+    }
+    return worst;
+  }
   // Moves the capture's rig (its truth) into camera 0's frame, levels it with `calibrate floor
   // CAPTURE OPTIONS`, and compares the result with the truth (expect_levelled_like_truth).
   void level_like_truth(const fs::path& capture, const Rig& truth, const std::string& options, bool origin_known, const std::string& what);
@@ -46,6 +61,8 @@ TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
   EXPECT_EQ(r.err.rfind("calibrate: warning: " + frame.string() + ": cannot decode image (corrupt or truncated): ", 0), 0u) << r.err;
   EXPECT_NE(r.out.find("cam3"), std::string::npos);
   EXPECT_NE(r.out.find("after BA"), std::string::npos);
+  // The depth cameras see the person waving the wand, and their surfaces agree with the LED distance.
+  EXPECT_NEAR(depth_scale_in(r.out), 1.0, 0.01) << r.out;
   const Rig calibrated = read_rig(out);
   const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
   ASSERT_EQ(calibrated.cameras.size(), 4u);
@@ -56,6 +73,53 @@ TEST_F(CalibrateCli, CalibratesAWandCaptureIntoARigTheReaderLoads) {
     EXPECT_LT((est.translation() - tru.translation()).norm(), 0.01) << c;
     EXPECT_LT(rotation_angle_deg(tru.inverse() * est), 0.4) << c;
   }
+}
+
+// Colour cameras fix the rig only up to scale, and --led-distance gives it; the depth cameras
+// measure it too (depth_scale.h). A wand 10 % longer than --led-distance says (0.445 m against 0.4)
+// is refused in one line that names the option and the length the depth fits, and nothing is
+// written; --scale depth takes the depth's scale and finds the cameras; --scale led keeps the wrong
+// one, every camera 10 % of its distance too close to camera 0. Without depth nothing is checked,
+// and the output says so.
+TEST_F(CalibrateCli, ChecksTheLedDistanceAgainstTheDepth) {
+  const fs::path capture = dir_ / "wand";
+  ASSERT_EQ(run("synth --wand --out " + capture.string() + " --frames 120 --cameras 4 --resolution 320x240").exit_code, 0);
+  const Rig truth = read_rig(capture / "ground_truth" / "rig.json");
+  const fs::path out = dir_ / "rig.json";
+  const std::string calibrate = "calibrate extrinsics " + capture.string() + " --led-distance 0.4 --out " + out.string();
+  CommandResult r = run(calibrate);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(line_count(r.err), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("zipfusion: error: --led-distance: 0.4000 m puts the cameras ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find(" % nearer to camera 0 than their depth does (it fits the LEDs 0.44"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--scale depth"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+
+  r = run(calibrate + " --scale depth");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NEAR(depth_scale_in(r.out), 0.445 / 0.4, 0.01) << r.out;
+  EXPECT_LT(worst_position_m(read_rig(out), truth), 0.04);  // the depth's scale is good to about 0.5 % (camera 2 is 5 m away)
+
+  r = run(calibrate + " --scale led");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NEAR(depth_scale_in(r.out), 0.445 / 0.4, 0.01) << r.out;
+  EXPECT_GT(worst_position_m(read_rig(out), truth), 0.4);  // camera 2, 5 m from camera 0, lies 10 % of that short
+
+  // Blank depth, as the wand captures of earlier versions have it.
+  for (const CameraModel& camera : truth.cameras) {
+    for (const auto& file : fs::directory_iterator(capture / camera.name / "depth")) {
+      write_depth_png(file.path(), DepthImage(camera.depth_intrinsics.width, camera.depth_intrinsics.height, 0));
+    }
+  }
+  r = run(calibrate + " --scale depth");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: --scale depth: " + capture.string() + ": no depth in the 8 frames from 7 to 112\n");
+  r = run("calibrate extrinsics " + capture.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("scale: from --led-distance 0.4450 m alone (the depth cannot check it: no depth in the 8 frames from 7 to 112)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_LT(worst_position_m(read_rig(out), truth), 0.01);
 }
 
 // Calibrated intrinsics given per camera (`--intrinsics NAME=FILE`, the files `calibrate

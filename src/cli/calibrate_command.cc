@@ -14,6 +14,7 @@
 #include "cli/commands.h"
 #include "cli/frame_range.h"
 #include "cli/rig_poses.h"
+#include "zipfusion/calib/depth_scale.h"
 #include "zipfusion/calib/extrinsics.h"
 #include "zipfusion/calib/floor.h"
 #include "zipfusion/calib/intrinsics.h"
@@ -35,6 +36,8 @@ struct ExtrinsicsArgs {
   ExtrinsicOptions options;
   int threads = 0;
   std::vector<std::string> color_intrinsics, depth_intrinsics;  // NAME=FILE each
+  std::string scale = "check";    // --scale: check (the LED distance's, refused where the depth disagrees), led, depth
+  double scale_tolerance = 0.02;  // --scale-tolerance: how far the depth's scale may lie from the LED distance's, a fraction
 };
 
 struct FloorArgs {
@@ -191,6 +194,40 @@ void apply_intrinsics_files(const std::vector<std::string>& assignments, bool co
   }
 }
 
+// The wand's rig at the scale --scale asks for. Colour cameras see the rig only up to scale, and
+// the LED distance gives it; the depth cameras measure lengths themselves (depth_scale.h), so a
+// wrong --led-distance shows as a rig whose depth surfaces meet only once it is scaled. `check`
+// keeps the LED distance's scale where the depth agrees within the tolerance or cannot tell, and
+// refuses it otherwise (every camera would stand that much too far from camera 0, beyond what
+// registration pulls back); `depth` takes the depth's; `led` keeps the LED distance's regardless.
+Rig rig_at_checked_scale(const ExtrinsicsArgs& args, const Capture& capture, const ExtrinsicResult& result) {
+  const double led_m = args.options.led_distance_m;
+  const DepthScaleResult depth = measure_depth_scale(capture, result.rig, 0, {.num_threads = args.threads});
+  for (const std::string& file : depth.unreadable) print_diagnostic("calibrate: warning: " + file + "; that camera's depth is not used for the scale");
+  char line[400];
+  if (!depth.measured) {
+    if (args.scale == "depth") throw InvalidInput("--scale depth: " + capture.dir().string() + ": " + depth.not_measured);
+    std::printf("scale: from --led-distance %.4f m alone (the depth cannot check it: %s)\n", led_m, depth.not_measured.c_str());
+    return result.rig;
+  }
+  const double off = depth.scale - 1;
+  std::snprintf(line, sizeof line, "the cameras' depth surfaces meet with the rig at %.3f times that size (the LEDs %.4f m apart)", depth.scale,
+                led_m * depth.scale);
+  if (args.scale == "depth") {
+    std::printf("scale: from the depth, the rig scaled by %.3f: with --led-distance %.4f m %s\n", depth.scale, led_m, line);
+    return scale_rig(result.rig, 0, depth.scale);
+  }
+  if (std::abs(off) > args.scale_tolerance && args.scale == "check") {
+    std::snprintf(line, sizeof line,
+                  "--led-distance: %.4f m puts the cameras %.1f %% %s camera 0 than their depth does (it fits the LEDs %.4f m apart); measure the "
+                  "wand again, or take the depth's scale with --scale depth (--scale led keeps this one)",
+                  led_m, 100 * std::abs(1 - 1 / depth.scale), off > 0 ? "nearer to" : "farther from", led_m * depth.scale);
+    throw InvalidInput(line);
+  }
+  std::printf("scale: from --led-distance %.4f m%s; %s\n", led_m, args.scale == "led" ? " (--scale led)" : ", which the depth confirms", line);
+  return result.rig;
+}
+
 void run_extrinsics(ExtrinsicsArgs& args) {
   args.options.num_threads = args.threads;
   args.options.validate();
@@ -227,22 +264,19 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   }
   std::printf("\n%d LED points, %d observations dropped as outliers%s\n", result.points, result.dropped_observations,
               result.converged ? "" : "; bundle adjustment stopped before converging");
-  // Cameras alone see the rig only up to scale: the scale is the one length given, not checked.
-  std::printf("scale: from --led-distance %.4f m alone (the adjusted LED pairs average %.4f m); a wrong length scales every camera's "
-              "distance from %s by as much\n",
-              args.options.led_distance_m, result.led_distance_mean_m, capture.rig().cameras[0].name.c_str());
+  const Rig rig_out = rig_at_checked_scale(args, capture, result);
   if (capture.ground_truth_rig()) {
     const Rig& truth = *capture.ground_truth_rig();
     double worst_mm = 0, worst_deg = 0;
     for (size_t c = 0; c < truth.cameras.size(); ++c) {
-      const Rigid3d& est = result.rig.cameras[c].world_from_depth;
+      const Rigid3d& est = rig_out.cameras[c].world_from_depth;
       const Rigid3d& tru = truth.cameras[c].world_from_depth;
       worst_mm = std::max(worst_mm, 1000 * (est.translation() - tru.translation()).norm());
       worst_deg = std::max(worst_deg, rotation_angle_deg(tru.inverse() * est));
     }
     std::printf("against ground_truth/rig.json: worst camera %.2f mm, %.3f deg\n", worst_mm, worst_deg);
   }
-  write_rig(args.out, result.rig);
+  write_rig(args.out, rig_out);
   std::cout << "wrote " << args.out << "\n";
 }
 
@@ -308,6 +342,14 @@ void add_calibrate_command(CLI::App& app) {
   extr->add_option("--depth-intrinsics", ex->depth_intrinsics, "CAMERA=FILE: that camera's depth intrinsics, written to --out (repeat per camera)")
       ->allow_extra_args(false)
       ->type_name("CAMERA=FILE");
+  extr->add_option("--scale", ex->scale,
+                   "check: the scale from --led-distance, refused where the depth cameras measure the rig more than --scale-tolerance "
+                   "larger or smaller; depth: the scale the depth measures; led: --led-distance's, unchecked")
+      ->check(CLI::IsMember({"check", "depth", "led"}))
+      ->capture_default_str();
+  extr->add_option("--scale-tolerance", ex->scale_tolerance, "How far the depth's scale may lie from --led-distance's for --scale check, a fraction")
+      ->check(CLI::Range(0.001, 0.5))
+      ->capture_default_str();
   add_threads_option(extr, ex->threads);
   extr->callback([ex] { run_extrinsics(*ex); });
 

@@ -127,7 +127,7 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--frames", o.frames, "Frames to render")->capture_default_str();
   cmd->add_flag("--wand", args->wand,
                 "Write a calibration capture instead: a red and a green LED waved through the volume in a dim room with "
-                "distractors (colour PNGs, blank depth); --frames sets its length (default 300 with --wand)");
+                "distractors (colour PNGs; depth of the person waving it and the floor); --frames sets its length (default 300 with --wand)");
   cmd->add_option("--led-distance", args->wand_options.led_distance_m, "--wand: distance between the LEDs, metres")->capture_default_str();
   cmd->add_option("--led-jitter", args->wand_options.led_jitter_px, "--wand: detection noise, pixels (sigma per axis)")->capture_default_str();
   cmd->add_flag("--checkerboard", args->checkerboard, "Write checkerboard views with known intrinsics (PNGs + truth.json) instead");

@@ -184,14 +184,17 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
     }
     fs::create_directories(staging / "ground_truth");
     for (int frame = 0; frame < options.frames; ++frame) {
+      const TriangleMesh person = subject_mesh(rig_options, frame);
       parallel_for(0, rig_options.cameras, [&](int c) {
         const CameraModel& cam = result.true_rig.cameras[c];
         const Rigid3d color_from_world = cam.color_from_depth * cam.world_from_depth.inverse();
         write_color_image(staging / cam.name / "color" / frame_file_name(frame, ".png"),
                           render_wand_view(*cam.color_intrinsics, color_from_world, sequence, frame, c, options));
-        // Blank depth: the format wants a depth frame; the wand is too thin to be measured.
+        // The depth cameras see the person waving the wand (the wand itself is too thin to be
+        // measured) and the floor: what a depth camera records during a real wand capture, and
+        // what calibrate checks the wand's scale against (depth_scale.h).
         write_depth_png(staging / cam.name / "depth" / frame_file_name(frame, ".png"),
-                        DepthImage(cam.depth_intrinsics.width, cam.depth_intrinsics.height, 0));
+                        render_depth_view(person, result.true_rig, c, frame, rig_options));
       }, rig_options.num_threads);
       if (progress) progress(frame + 1, options.frames);
     }

@@ -181,33 +181,49 @@ TriangleMesh subject_mesh(const SynthOptions& options, int frame) {
   return mesh;
 }
 
-SyntheticView render_view(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame,
-                          const SynthOptions& options) {
-  const CameraModel& cam = true_rig.cameras.at(camera);
-  const std::uint64_t seed = view_seed(options.seed, frame, camera);
-  const Rigid3d depth_from_world = cam.world_from_depth.inverse();
-  RenderBuffers buffers;
-  auto render_scene = [&](const Intrinsics& k, const Rigid3d& cam_from_world, bool with_color) {
-    buffers.reset(k, with_color, kBackground);
-    rasterize_mesh(subject, k, cam_from_world, buffers);
-    if (options.floor) rasterize_floor(k, cam_from_world, buffers);
-  };
+namespace {
 
-  SyntheticView view;
+// The subject (and the floor) into a camera's buffers.
+void render_scene(const TriangleMesh& subject, const Intrinsics& k, const Rigid3d& cam_from_world, bool with_color, bool floor,
+                  RenderBuffers& buffers) {
+  buffers.reset(k, with_color, kBackground);
+  rasterize_mesh(subject, k, cam_from_world, buffers);
+  if (floor) rasterize_floor(k, cam_from_world, buffers);
+}
+
+DepthImage render_depth(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame, const SynthOptions& options,
+                        RenderBuffers& buffers) {
+  const CameraModel& cam = true_rig.cameras.at(camera);
+  const Rigid3d depth_from_world = cam.world_from_depth.inverse();
   Image<float> projector_depth;
   if (options.noise.projector_shadows) {
     Rigid3d projector_from_depth = Rigid3d::Identity();
     projector_from_depth.translation() = Eigen::Vector3d(-options.noise.baseline_m, 0, 0);
-    render_scene(cam.depth_intrinsics, projector_from_depth * depth_from_world, false);
+    render_scene(subject, cam.depth_intrinsics, projector_from_depth * depth_from_world, false, options.floor, buffers);
     projector_depth = std::move(buffers.depth);
   }
-  render_scene(cam.depth_intrinsics, depth_from_world, false);
-  view.depth = simulate_kinect_depth(buffers.depth, projector_depth, cam.depth_intrinsics, options.noise,
-                                     true_rig.depth_unit_m, seed);
+  render_scene(subject, cam.depth_intrinsics, depth_from_world, false, options.floor, buffers);
+  return simulate_kinect_depth(buffers.depth, projector_depth, cam.depth_intrinsics, options.noise, true_rig.depth_unit_m,
+                               view_seed(options.seed, frame, camera));
+}
+
+}  // namespace
+
+DepthImage render_depth_view(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame, const SynthOptions& options) {
+  RenderBuffers buffers;
+  return render_depth(subject, true_rig, camera, frame, options, buffers);
+}
+
+SyntheticView render_view(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame,
+                          const SynthOptions& options) {
+  const CameraModel& cam = true_rig.cameras.at(camera);
+  RenderBuffers buffers;
+  SyntheticView view;
+  view.depth = render_depth(subject, true_rig, camera, frame, options, buffers);
   if (cam.has_color()) {
-    render_scene(*cam.color_intrinsics, cam.color_from_depth * depth_from_world, true);
+    render_scene(subject, *cam.color_intrinsics, cam.color_from_depth * cam.world_from_depth.inverse(), true, options.floor, buffers);
     view.color = std::move(buffers.color);
-    add_color_noise(view.color, options.color_noise_sigma, seed);
+    add_color_noise(view.color, options.color_noise_sigma, view_seed(options.seed, frame, camera));
   }
   return view;
 }

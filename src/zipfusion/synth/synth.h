@@ -66,6 +66,9 @@ struct SyntheticView {
 SyntheticView render_view(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame,
                           const SynthOptions& options);
 
+//! The depth image of render_view alone.
+DepthImage render_depth_view(const TriangleMesh& subject, const Rig& true_rig, int camera, int frame, const SynthOptions& options);
+
 struct SynthResult {
   Rig rig;       // as written to rig.json
   Rig true_rig;  // as written to ground_truth/rig.json

@@ -1,0 +1,293 @@
+#include "zipfusion/calib/depth_scale.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "zipfusion/core/camera.h"
+#include "zipfusion/core/error.h"
+#include "zipfusion/core/parallel.h"
+
+namespace zipfusion {
+namespace {
+
+// The frame whose centre the wand calibrated: the colour camera's, else the depth camera's.
+Rigid3d world_from_calibrated(const CameraModel& model) {
+  return model.has_color() ? model.world_from_depth * model.color_from_depth.inverse() : model.world_from_depth;
+}
+
+// One camera's depth in one frame: its sampled points and their normals (depth camera frame; a
+// zero normal where the neighbours are not one surface), and the whole image in metres, which the
+// other cameras' points are compared with.
+struct CameraDepth {
+  std::vector<Eigen::Vector3f> points, normals;
+  std::vector<float> depth_m;  // 0 where nothing was measured or outside the range
+  int width = 0, height = 0;
+
+  float at(int u, int v) const { return u < 0 || v < 0 || u >= width || v >= height ? 0.0f : depth_m[static_cast<size_t>(v) * width + u]; }
+};
+
+struct FrameDepth {
+  std::vector<CameraDepth> cameras;
+};
+
+// What a scaled rig is compared by, for each ordered camera pair (i, j): j_from_i, the direction
+// between the two depth centres in j's frame, and how i's points move in j's frame with the scale.
+struct PairGeometry {
+  Rigid3f j_from_i;
+  Eigen::Vector3f baseline_in_j;  // unit
+  Eigen::Vector3f d_q_d_scale;    // how a point of i seen from j moves as the scale grows, j's frame
+};
+
+std::vector<PairGeometry> pair_geometry(const Rig& rig, int gauge, double scale) {
+  const Rig scaled = scale_rig(rig, gauge, scale);
+  const int n = static_cast<int>(rig.cameras.size());
+  std::vector<PairGeometry> pairs(static_cast<size_t>(n) * n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      if (i == j) continue;
+      const Rigid3d& world_from_i = scaled.cameras[i].world_from_depth;
+      const Rigid3d& world_from_j = scaled.cameras[j].world_from_depth;
+      PairGeometry& g = pairs[static_cast<size_t>(i) * n + j];
+      g.j_from_i = (world_from_j.inverse() * world_from_i).cast<float>();
+      g.baseline_in_j = (world_from_j.linear().transpose() * (world_from_j.translation() - world_from_i.translation())).normalized().cast<float>();
+      // Every centre moves away from the gauge's as origin + s·(centre − origin): a point of i
+      // moves with i's centre, and j's frame with j's, so in j's frame the point moves by
+      // R_jᵀ(c_i − c_j) per unit of s (c at scale 1).
+      const Eigen::Vector3d offset = world_from_calibrated(rig.cameras[i]).translation() - world_from_calibrated(rig.cameras[j]).translation();
+      g.d_q_d_scale = (world_from_j.linear().transpose() * offset).cast<float>();
+    }
+  }
+  return pairs;
+}
+
+// A point's surface faces a camera when it is seen at most 80° from its normal.
+constexpr float kLeastFacingCos = 0.17f;
+
+// Calls visit(q, normal, measured depth, pixel, pair geometry, j's intrinsics) for every sample of
+// camera i whose surface faces camera j and lands on a pixel j measured, over all frames and
+// ordered pairs; q and normal in j's frame.
+template <typename Visit>
+void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector<PairGeometry>& pairs, const Rig& rig, Visit&& visit) {
+  const int n = static_cast<int>(rig.cameras.size());
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      if (i == j) continue;
+      const PairGeometry& g = pairs[static_cast<size_t>(i) * n + j];
+      const Intrinsics& k = rig.cameras[j].depth_intrinsics;
+      const auto fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
+      for (const FrameDepth& frame : frames) {
+        const CameraDepth& from = frame.cameras[i];
+        const CameraDepth& to = frame.cameras[j];
+        if (from.points.empty() || to.depth_m.empty()) continue;
+        for (size_t s = 0; s < from.points.size(); ++s) {
+          const Eigen::Vector3f q = g.j_from_i * from.points[s];
+          if (!(q.z() > 0)) continue;
+          const int pu = static_cast<int>(std::lround(fx * q.x() / q.z() + cx)), pv = static_cast<int>(std::lround(fy * q.y() / q.z() + cy));
+          const float measured = to.at(pu, pv);
+          if (measured == 0) continue;
+          // Only a surface that faces camera j can be the one j measures there: a point on the
+          // far side of a limb would otherwise meet j's near side once the rig is a limb's
+          // thickness too small (9 cm of 3.5 m is 2.5 %).
+          const Eigen::Vector3f normal = g.j_from_i.linear() * from.normals[s];
+          if (!(normal.dot(q) < -kLeastFacingCos * q.norm())) continue;
+          visit(q, normal, measured, pu, pv, g, k);
+        }
+      }
+    }
+  }
+}
+
+// Summed agreement of every camera's points with every other camera's depth, the rig scaled by
+// `scale`: a depth difference r weighs exp(−r²/2σ²), nothing beyond 3σ (another surface, or the
+// point hidden from that camera), times how squarely the point's surface faces along the two
+// cameras' baseline. A surface parallel to the baseline (the floor between cameras at one height)
+// agrees at every scale and would only add how much of it the two happen to share.
+double agreement_at(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, double sigma_m) {
+  const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
+  const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
+  const auto cutoff = static_cast<float>(3 * sigma_m);
+  double total = 0;
+  for_each_covisible(frames, pairs, rig, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int, int, const PairGeometry& g,
+                                             const Intrinsics&) {
+    const float r = measured - q.z();
+    if (std::abs(r) < cutoff) total += std::abs(normal.dot(g.baseline_in_j)) * std::exp(-r * r * inv_two_sigma2);
+  });
+  return total;
+}
+
+// Gauss-Newton steps on the point-to-plane distances between each camera's points and the
+// surface the other camera measures where they land (its normal: the point's own, carried into
+// that camera), robustly weighted; each distance changes with the scale by the normal's share of
+// the two centres' offset, so surfaces parallel to the baseline do not pull.
+double refine_scale(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, double sigma_m) {
+  const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
+  const auto cutoff = static_cast<float>(3 * sigma_m);
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
+    double jtj = 0, jtr = 0;
+    for_each_covisible(frames, pairs, rig, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int pu, int pv,
+                                               const PairGeometry& g, const Intrinsics& k) {
+      const Eigen::Vector3f& n = normal;
+      const Eigen::Vector3f y = unproject(k, static_cast<float>(pu), static_cast<float>(pv), measured);
+      const float r = n.dot(q - y);
+      if (!(std::abs(r) < cutoff)) return;
+      const float w = std::exp(-r * r * inv_two_sigma2);
+      const float jacobian = n.dot(g.d_q_d_scale);
+      jtj += w * jacobian * jacobian;
+      jtr += w * jacobian * r;
+    });
+    if (!(jtj > 0)) break;
+    const double step = std::clamp(-jtr / jtj, -0.01, 0.01);
+    scale += step;
+    if (std::abs(step) < 1e-5) break;
+  }
+  return scale;
+}
+
+}  // namespace
+
+void DepthScaleOptions::validate() const {
+  auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
+  if (frames < 1 || frames > 1000) fail("frames", "must be in [1, 1000]");
+  if (pixel_step < 1 || pixel_step > 64) fail("pixel_step", "must be in [1, 64]");
+  if (!(min_depth_m > 0 && max_depth_m > min_depth_m)) fail("depth range", "need 0 < min < max metres");
+  if (!(lowest_scale > 0 && lowest_scale < 1 && highest_scale > 1 && highest_scale < 10)) fail("scale range", "need 0 < lowest < 1 < highest < 10");
+  if (!(agreement_m > 0 && agreement_m < 1)) fail("agreement_m", "must be in (0, 1) metres");
+  if (!(min_agreement >= 0) || !(min_peak_ratio >= 1)) fail("min_agreement", "need min_agreement >= 0 and min_peak_ratio >= 1");
+}
+
+Rig scale_rig(const Rig& rig, int gauge, double scale) {
+  if (gauge < 0 || gauge >= static_cast<int>(rig.cameras.size())) throw InvalidInput("scale_rig: no camera " + std::to_string(gauge));
+  Rig out = rig;
+  const Eigen::Vector3d origin = world_from_calibrated(rig.cameras[gauge]).translation();
+  for (CameraModel& model : out.cameras) {
+    Rigid3d world_from_centre = world_from_calibrated(model);
+    world_from_centre.translation() = origin + scale * (world_from_centre.translation() - origin);
+    model.world_from_depth = model.has_color() ? world_from_centre * model.color_from_depth : world_from_centre;
+  }
+  return out;
+}
+
+DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int gauge, const DepthScaleOptions& options) {
+  options.validate();
+  DepthScaleResult result;
+  const int n = capture.camera_count();
+  if (static_cast<int>(rig.cameras.size()) != n) throw InvalidInput("measure_depth_scale: the rig has another number of cameras than the capture");
+  // Frames spread over the capture: a moving subject shows the cameras different surfaces.
+  const int count = std::min(options.frames, capture.frame_count());
+  for (int k = 0; k < count; ++k) {
+    const int frame = static_cast<int>((k + 0.5) * capture.frame_count() / count);
+    if (result.frames.empty() || result.frames.back() != frame) result.frames.push_back(frame);
+  }
+  std::vector<FrameDepth> frames(result.frames.size());
+  for (FrameDepth& f : frames) f.cameras.resize(n);
+  std::vector<std::vector<std::string>> unreadable(frames.size() * n);
+  parallel_for(0, static_cast<int>(frames.size()) * n, [&](int index) {
+    const int f = index / n, c = index % n;
+    const CameraFrame image = capture.load_camera_frame(result.frames[f], c);
+    unreadable[index] = image.unreadable;
+    if (!image.has_depth) return;
+    const Intrinsics& k = rig.cameras[c].depth_intrinsics;
+    CameraDepth& out = frames[f].cameras[c];
+    out.width = image.depth.width;
+    out.height = image.depth.height;
+    out.depth_m.assign(static_cast<size_t>(out.width) * out.height, 0.0f);
+    bool any = false;
+    for (int v = 0; v < out.height; ++v) {
+      for (int u = 0; u < out.width; ++u) {
+        const double z = image.depth(u, v) * capture.rig().depth_unit_m;
+        if (z < options.min_depth_m || z > options.max_depth_m) continue;
+        out.depth_m[static_cast<size_t>(v) * out.width + u] = static_cast<float>(z);
+        any = true;
+      }
+    }
+    if (!any) {
+      out.depth_m.clear();
+      return;
+    }
+    const int step = std::max(1, static_cast<int>(std::lround(options.pixel_step * out.width / 640.0)));
+    // Normals by a plane through the pixels of a window about 3 cm across at 2.5 m (5×5 of them,
+    // every half-window), those within 5 cm of the point's depth: the Kinect's centimetre of
+    // noise and its disparity steps would tilt a normal from the next pixels by tens of degrees.
+    // Fewer than 12 such pixels (an edge, a thin part) leave the normal zero.
+    const int reach = std::max(2, static_cast<int>(std::lround(4.0 * out.width / 640.0)));
+    for (int v = step / 2; v < out.height; v += step) {
+      for (int u = step / 2; u < out.width; u += step) {
+        const float z = out.at(u, v);
+        if (z == 0) continue;
+        const Eigen::Vector3f p = unproject(k, static_cast<float>(u), static_cast<float>(v), z);
+        Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+        Eigen::Matrix3f second = Eigen::Matrix3f::Zero();
+        int count = 0;
+        for (int dv = -2; dv <= 2; ++dv) {
+          for (int du = -2; du <= 2; ++du) {
+            const int wu = u + du * reach / 2, wv = v + dv * reach / 2;
+            const float d = out.at(wu, wv);
+            if (d == 0 || std::abs(d - z) > 0.05f) continue;
+            const Eigen::Vector3f w = unproject(k, static_cast<float>(wu), static_cast<float>(wv), d) - p;
+            sum += w;
+            second += w * w.transpose();
+            ++count;
+          }
+        }
+        Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+        if (count >= 12) {
+          const Eigen::Vector3f mean = sum / static_cast<float>(count);
+          const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> solver(second / static_cast<float>(count) - mean * mean.transpose());
+          normal = solver.eigenvectors().col(0);
+          if (normal.dot(p) > 0) normal = -normal;
+        }
+        out.points.push_back(p);
+        out.normals.push_back(normal);
+      }
+    }
+  }, options.num_threads);
+  for (const auto& files : unreadable) result.unreadable.insert(result.unreadable.end(), files.begin(), files.end());
+  for (const FrameDepth& f : frames) {
+    for (const CameraDepth& c : f.cameras) result.samples += static_cast<int>(c.points.size());
+  }
+  char frame_span[64];
+  std::snprintf(frame_span, sizeof frame_span, "%d frames from %d to %d", static_cast<int>(result.frames.size()),
+                result.frames.empty() ? 0 : result.frames.front(), result.frames.empty() ? 0 : result.frames.back());
+  if (result.samples == 0) {
+    result.not_measured = std::string("no depth in the ") + frame_span;
+    return result;
+  }
+
+  // Every 1 % over the range for the start, then Gauss-Newton from the best.
+  const double step = 0.01;
+  const int steps = static_cast<int>(std::floor((options.highest_scale - options.lowest_scale) / step + 1e-9)) + 1;
+  std::vector<double> values(steps);
+  parallel_for(0, steps, [&](int s) { values[s] = agreement_at(frames, rig, gauge, options.lowest_scale + s * step, options.agreement_m); },
+               options.num_threads);
+  const auto best = static_cast<size_t>(std::max_element(values.begin(), values.end()) - values.begin());
+  // Surfaces that fix the size agree within a percent or two of it; a plane's agreement changes
+  // only slowly, with how much of it two cameras share: the peak must stand above its shoulders.
+  const size_t shoulder = 4;
+  const bool inside = best >= shoulder && best + shoulder < values.size();
+  const double shoulders = inside ? std::max(values[best - shoulder], values[best + shoulder]) : values[best];
+  result.agreement_at_one = agreement_at(frames, rig, gauge, 1.0, options.agreement_m);
+  char detail[300];
+  if (values[best] < options.min_agreement) {
+    std::snprintf(detail, sizeof detail,
+                  "the depth in the %s shows too little that two cameras both see, facing across the line between them, to measure the "
+                  "rig's size (agreement %.0f of %.0f needed; a floor alone agrees at every size)",
+                  frame_span, values[best], options.min_agreement);
+    result.not_measured = detail;
+    return result;
+  }
+  if (!inside || values[best] < options.min_peak_ratio * shoulders) {
+    std::snprintf(detail, sizeof detail, "the depth in the %s agrees about as well at every size from %.2f to %.2f times the rig's", frame_span,
+                  options.lowest_scale, options.highest_scale);
+    result.not_measured = detail;
+    return result;
+  }
+  result.scale = refine_scale(frames, rig, gauge, options.lowest_scale + best * step, options.agreement_m);
+  result.agreement = agreement_at(frames, rig, gauge, result.scale, options.agreement_m);
+  result.measured = true;
+  return result;
+}
+
+}  // namespace zipfusion
