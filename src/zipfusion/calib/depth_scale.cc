@@ -176,9 +176,9 @@ DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int
   const int n = capture.camera_count();
   if (static_cast<int>(rig.cameras.size()) != n) throw InvalidInput("measure_depth_scale: the rig has another number of cameras than the capture");
   // Frames spread over the capture: a moving subject shows the cameras different surfaces.
-  const int count = std::min(options.frames, capture.frame_count());
-  for (int k = 0; k < count; ++k) {
-    const int frame = static_cast<int>((k + 0.5) * capture.frame_count() / count);
+  const int compared = std::min(options.frames, capture.frame_count());
+  for (int k = 0; k < compared; ++k) {
+    const int frame = static_cast<int>((k + 0.5) * capture.frame_count() / compared);
     if (result.frames.empty() || result.frames.back() != frame) result.frames.push_back(frame);
   }
   std::vector<FrameDepth> frames(result.frames.size());
