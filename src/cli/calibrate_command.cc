@@ -210,18 +210,19 @@ Rig rig_at_checked_scale(const ExtrinsicsArgs& args, const Capture& capture, con
     std::printf("scale: from --led-distance %.4f m alone (the depth cannot check it: %s)\n", led_m, depth.not_measured.c_str());
     return result.rig;
   }
-  const double off = depth.scale - 1;
+  // How far the cameras lie from where the depth puts them, as a share of their distance from camera 0.
+  const double cameras_off = 1 - 1 / depth.scale;
   std::snprintf(line, sizeof line, "the cameras' depth surfaces meet with the rig at %.3f times that size (the LEDs %.4f m apart)", depth.scale,
                 led_m * depth.scale);
   if (args.scale == "depth") {
     std::printf("scale: from the depth, the rig scaled by %.3f: with --led-distance %.4f m %s\n", depth.scale, led_m, line);
     return scale_rig(result.rig, 0, depth.scale);
   }
-  if (std::abs(off) > args.scale_tolerance && args.scale == "check") {
+  if (std::abs(cameras_off) > args.scale_tolerance && args.scale == "check") {
     std::snprintf(line, sizeof line,
                   "--led-distance: %.4f m puts the cameras %.1f %% %s camera 0 than their depth does (it fits the LEDs %.4f m apart); measure the "
                   "wand again, or take the depth's scale with --scale depth (--scale led keeps this one)",
-                  led_m, 100 * std::abs(1 - 1 / depth.scale), off > 0 ? "nearer to" : "farther from", led_m * depth.scale);
+                  led_m, 100 * std::abs(cameras_off), cameras_off > 0 ? "nearer to" : "farther from", led_m * depth.scale);
     throw InvalidInput(line);
   }
   std::printf("scale: from --led-distance %.4f m%s; %s\n", led_m, args.scale == "led" ? " (--scale led)" : ", which the depth confirms", line);
@@ -347,7 +348,8 @@ void add_calibrate_command(CLI::App& app) {
                    "larger or smaller; depth: the scale the depth measures; led: --led-distance's, unchecked")
       ->check(CLI::IsMember({"check", "depth", "led"}))
       ->capture_default_str();
-  extr->add_option("--scale-tolerance", ex->scale_tolerance, "How far the depth's scale may lie from --led-distance's for --scale check, a fraction")
+  extr->add_option("--scale-tolerance", ex->scale_tolerance,
+                   "--scale check: how far the cameras may lie from where the depth puts them, a fraction of their distance from camera 0")
       ->check(CLI::Range(0.001, 0.5))
       ->capture_default_str();
   add_threads_option(extr, ex->threads);

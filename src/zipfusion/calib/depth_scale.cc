@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "zipfusion/core/camera.h"
 #include "zipfusion/core/error.h"
@@ -17,13 +18,13 @@ Rigid3d world_from_calibrated(const CameraModel& model) {
   return model.has_color() ? model.world_from_depth * model.color_from_depth.inverse() : model.world_from_depth;
 }
 
-// One camera's depth in one frame: its sampled points and their normals (depth camera frame; a
-// zero normal where the neighbours are not one surface), and the whole image in metres, which the
-// other cameras' points are compared with.
+// One camera's depth in one frame: the whole image in metres, which the other cameras' points are
+// compared with, and its points (every few pixels, where the pixels around are one surface) with
+// their normals, in the depth camera's frame.
 struct CameraDepth {
-  std::vector<Eigen::Vector3f> points, normals;
   std::vector<float> depth_m;  // 0 where nothing was measured or outside the range
   int width = 0, height = 0;
+  std::vector<Eigen::Vector3f> points, normals;
 
   float at(int u, int v) const { return u < 0 || v < 0 || u >= width || v >= height ? 0.0f : depth_m[static_cast<size_t>(v) * width + u]; }
 };
@@ -62,14 +63,13 @@ std::vector<PairGeometry> pair_geometry(const Rig& rig, int gauge, double scale)
   return pairs;
 }
 
-// A point's surface faces a camera when it is seen at most 80° from its normal.
-constexpr float kLeastFacingCos = 0.17f;
-
 // Calls visit(q, normal, measured depth, pixel, pair geometry, j's intrinsics) for every sample of
 // camera i whose surface faces camera j and lands on a pixel j measured, over all frames and
 // ordered pairs; q and normal in j's frame.
 template <typename Visit>
-void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector<PairGeometry>& pairs, const Rig& rig, Visit&& visit) {
+void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector<PairGeometry>& pairs, const Rig& rig,
+                        const DepthScaleOptions& options, Visit&& visit) {
+  const auto least_facing_cos = static_cast<float>(std::cos(options.max_view_angle_deg * std::numbers::pi / 180));
   const int n = static_cast<int>(rig.cameras.size());
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
@@ -91,7 +91,7 @@ void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector
           // far side of a limb would otherwise meet j's near side once the rig is a limb's
           // thickness too small (9 cm of 3.5 m is 2.5 %).
           const Eigen::Vector3f normal = g.j_from_i.linear() * from.normals[s];
-          if (!(normal.dot(q) < -kLeastFacingCos * q.norm())) continue;
+          if (!(normal.dot(q) < -least_facing_cos * q.norm())) continue;
           visit(q, normal, measured, pu, pv, g, k);
         }
       }
@@ -104,12 +104,13 @@ void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector
 // point hidden from that camera), times how squarely the point's surface faces along the two
 // cameras' baseline. A surface parallel to the baseline (the floor between cameras at one height)
 // agrees at every scale and would only add how much of it the two happen to share.
-double agreement_at(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, double sigma_m) {
+double agreement_at(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, const DepthScaleOptions& options) {
   const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
+  const double sigma_m = options.agreement_m;
   const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
   const auto cutoff = static_cast<float>(3 * sigma_m);
   double total = 0;
-  for_each_covisible(frames, pairs, rig, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int, int, const PairGeometry& g,
+  for_each_covisible(frames, pairs, rig, options, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int, int, const PairGeometry& g,
                                              const Intrinsics&) {
     const float r = measured - q.z();
     if (std::abs(r) < cutoff) total += std::abs(normal.dot(g.baseline_in_j)) * std::exp(-r * r * inv_two_sigma2);
@@ -121,13 +122,15 @@ double agreement_at(const std::vector<FrameDepth>& frames, const Rig& rig, int g
 // surface the other camera measures where they land (its normal: the point's own, carried into
 // that camera), robustly weighted; each distance changes with the scale by the normal's share of
 // the two centres' offset, so surfaces parallel to the baseline do not pull.
-double refine_scale(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, double sigma_m) {
+double refine_scale(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, double lowest, double highest,
+                    const DepthScaleOptions& options) {
+  const double sigma_m = options.agreement_m;
   const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
   const auto cutoff = static_cast<float>(3 * sigma_m);
   for (int iteration = 0; iteration < 30; ++iteration) {
     const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
     double jtj = 0, jtr = 0;
-    for_each_covisible(frames, pairs, rig, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int pu, int pv,
+    for_each_covisible(frames, pairs, rig, options, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int pu, int pv,
                                                const PairGeometry& g, const Intrinsics& k) {
       const Eigen::Vector3f& n = normal;
       const Eigen::Vector3f y = unproject(k, static_cast<float>(pu), static_cast<float>(pv), measured);
@@ -140,8 +143,9 @@ double refine_scale(const std::vector<FrameDepth>& frames, const Rig& rig, int g
     });
     if (!(jtj > 0)) break;
     const double step = std::clamp(-jtr / jtj, -0.01, 0.01);
-    scale += step;
-    if (std::abs(step) < 1e-5) break;
+    const double before = scale;
+    scale = std::clamp(scale + step, lowest, highest);
+    if (std::abs(scale - before) < 1e-5) break;
   }
   return scale;
 }
@@ -156,6 +160,7 @@ void DepthScaleOptions::validate() const {
   if (!(lowest_scale > 0 && lowest_scale < 1 && highest_scale > 1 && highest_scale < 10)) fail("scale range", "need 0 < lowest < 1 < highest < 10");
   if (!(agreement_m > 0 && agreement_m < 1)) fail("agreement_m", "must be in (0, 1) metres");
   if (!(min_agreement >= 0) || !(min_peak_ratio >= 1)) fail("min_agreement", "need min_agreement >= 0 and min_peak_ratio >= 1");
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg < 90)) fail("max_view_angle_deg", "must be in (0, 90) degrees");
 }
 
 Rig scale_rig(const Rig& rig, int gauge, double scale) {
@@ -186,7 +191,7 @@ DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int
   std::vector<std::vector<std::string>> unreadable(frames.size() * n);
   parallel_for(0, static_cast<int>(frames.size()) * n, [&](int index) {
     const int f = index / n, c = index % n;
-    const CameraFrame image = capture.load_camera_frame(result.frames[f], c);
+    const CameraFrame image = capture.load_camera_depth(result.frames[f], c);
     unreadable[index] = image.unreadable;
     if (!image.has_depth) return;
     const Intrinsics& k = rig.cameras[c].depth_intrinsics;
@@ -232,13 +237,11 @@ DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int
             ++count;
           }
         }
-        Eigen::Vector3f normal = Eigen::Vector3f::Zero();
-        if (count >= 12) {
-          const Eigen::Vector3f mean = sum / static_cast<float>(count);
-          const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> solver(second / static_cast<float>(count) - mean * mean.transpose());
-          normal = solver.eigenvectors().col(0);
-          if (normal.dot(p) > 0) normal = -normal;
-        }
+        if (count < 12) continue;
+        const Eigen::Vector3f mean = sum / static_cast<float>(count);
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> solver(second / static_cast<float>(count) - mean * mean.transpose());
+        Eigen::Vector3f normal = solver.eigenvectors().col(0);
+        if (normal.dot(p) > 0) normal = -normal;
         out.points.push_back(p);
         out.normals.push_back(normal);
       }
@@ -256,36 +259,41 @@ DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int
     return result;
   }
 
-  // Every 1 % over the range for the start, then Gauss-Newton from the best.
-  const double step = 0.01;
-  const int steps = static_cast<int>(std::floor((options.highest_scale - options.lowest_scale) / step + 1e-9)) + 1;
+  // Every 1.5 % over the range for the start, then Gauss-Newton from the best, within a step and a
+  // half of it.
+  const double ratio = 1.015;
+  const int steps = static_cast<int>(std::floor(std::log(options.highest_scale / options.lowest_scale) / std::log(ratio))) + 1;
+  auto factor = [&](double index) { return options.lowest_scale * std::pow(ratio, index); };
   std::vector<double> values(steps);
-  parallel_for(0, steps, [&](int s) { values[s] = agreement_at(frames, rig, gauge, options.lowest_scale + s * step, options.agreement_m); },
-               options.num_threads);
-  const auto best = static_cast<size_t>(std::max_element(values.begin(), values.end()) - values.begin());
-  // Surfaces that fix the size agree within a percent or two of it; a plane's agreement changes
-  // only slowly, with how much of it two cameras share: the peak must stand above its shoulders.
-  const size_t shoulder = 4;
-  const bool inside = best >= shoulder && best + shoulder < values.size();
-  const double shoulders = inside ? std::max(values[best - shoulder], values[best + shoulder]) : values[best];
-  result.agreement_at_one = agreement_at(frames, rig, gauge, 1.0, options.agreement_m);
+  parallel_for(0, steps, [&](int s) { values[s] = agreement_at(frames, rig, gauge, factor(s), options); }, options.num_threads);
+  // Surfaces that fix the size agree within a percent or two of it: the best agreement must stand
+  // above its shoulders, 4.5 % to either side. What changes slowly with the size (how much of a
+  // plane the cameras happen to share, where a floor ends) makes broad humps that do not.
+  const int shoulder = 3;
+  const auto best = static_cast<int>(std::max_element(values.begin(), values.end()) - values.begin());
+  const bool inside = best >= shoulder && best + shoulder < steps;
+  const double peak_ratio = inside ? values[best] / std::max({values[best - shoulder], values[best + shoulder], 1e-9}) : 1.0;
   char detail[300];
-  if (values[best] < options.min_agreement) {
+  const double highest = values[best];
+  if (highest < options.min_agreement) {
     std::snprintf(detail, sizeof detail,
                   "the depth in the %s shows too little that two cameras both see, facing across the line between them, to measure the "
                   "rig's size (agreement %.0f of %.0f needed; a floor alone agrees at every size)",
-                  frame_span, values[best], options.min_agreement);
+                  frame_span, highest, options.min_agreement);
     result.not_measured = detail;
     return result;
   }
-  if (!inside || values[best] < options.min_peak_ratio * shoulders) {
-    std::snprintf(detail, sizeof detail, "the depth in the %s agrees about as well at every size from %.2f to %.2f times the rig's", frame_span,
-                  options.lowest_scale, options.highest_scale);
+  if (peak_ratio < options.min_peak_ratio) {
+    std::snprintf(detail, sizeof detail,
+                  "the depth in the %s agrees about as well at every size from %.2f to %.2f times the rig's (a floor alone, or two cameras "
+                  "facing each other, show nothing that fixes it)",
+                  frame_span, options.lowest_scale, options.highest_scale);
     result.not_measured = detail;
     return result;
   }
-  result.scale = refine_scale(frames, rig, gauge, options.lowest_scale + best * step, options.agreement_m);
-  result.agreement = agreement_at(frames, rig, gauge, result.scale, options.agreement_m);
+  const double start = factor(static_cast<double>(best));
+  result.scale = refine_scale(frames, rig, gauge, start, factor(best - 1.5), factor(best + 1.5), options);
+  result.agreement = agreement_at(frames, rig, gauge, result.scale, options);
   result.measured = true;
   return result;
 }

@@ -7,7 +7,9 @@
 //! gauge's centre multiplied by s (`scale_rig`), each camera's depth pixels are carried into the
 //! others and compared with the depth measured there; the s at which they agree best is the factor
 //! the rig is off by. A plane alone (the floor) agrees at every s and measures nothing: a person
-//! or furniture seen by two cameras does.
+//! or furniture that two cameras see, facing partly along the line between them, does. Cameras
+//! that face each other, or stand 120° apart around a person, share too little of such surface for
+//! a measurement at 320×240 (docs/design.md).
 //! Thread safety: pure functions; parallel inside (`num_threads`).
 
 #include <string>
@@ -23,13 +25,14 @@ struct DepthScaleOptions {
   int pixel_step = 4;              // every pixel_step-th pixel of every pixel_step-th row at 640 pixels wide (scaled with the width)
   double min_depth_m = 0.4;        // depth outside [min, max] is not used (a Kinect's range)
   double max_depth_m = 4.5;
-  double lowest_scale = 0.75;      // the factors searched, every 1 % (a wand off by up to a third)
-  double highest_scale = 1.33;
+  double lowest_scale = 0.5;       // the factors searched, every 1.5 % (a wand off by up to a factor of 2)
+  double highest_scale = 2.0;
+  double max_view_angle_deg = 80;  // a point is compared where its surface faces the other camera at most this obliquely
   // σ of the Gaussian weight of a depth difference, metres: a Kinect v1's noise at 2.5–3 m is
   // 1.0–1.3 cm, and two cameras' readings differ by √2 of it.
   double agreement_m = 0.02;
   // A measurement needs at least this much agreement (summed weights) at its best factor, and
-  // that many times the agreement 4 % to either side: surfaces that fix the size agree within a
+  // that many times the agreement 4.5 % to either side: surfaces that fix the size agree within a
   // percent or two of it, while a plane's agreement changes only slowly, with how much of it two
   // cameras share.
   double min_agreement = 300;
@@ -44,8 +47,7 @@ struct DepthScaleResult {
   std::string not_measured;        // why not, when not (e.g. "no depth in frames 0–119")
   double scale = 1;                // the rig's offsets from the gauge times this agree best with the depth
   double agreement = 0;            // summed weights at `scale`
-  double agreement_at_one = 0;     // at the rig as it is
-  int samples = 0;                 // depth pixels compared (all frames and cameras)
+  int samples = 0;                 // depth points compared (all frames and cameras: pixels with a normal)
   std::vector<int> frames;         // the frames compared
   std::vector<std::string> unreadable;  // "FILE: reason" for each depth file that could not be read (not used)
 };

@@ -43,12 +43,11 @@ TEST_F(DepthScale, FindsTheFactorARigIsOffBy) {
     const DepthScaleResult result = measure_depth_scale(capture, scaled, 0, {.frames = 6});
     ASSERT_TRUE(result.measured) << factor << ": " << result.not_measured;
     // Without noise the factor comes out exact (0.01 %); the Kinect model's noise biases it by
-    // about −0.5 % here (docs/design.md).
+    // −0.3 to −0.6 % here (docs/design.md).
     EXPECT_NEAR(result.scale * factor, 1.0, 0.01) << factor;
     EXPECT_EQ(result.frames.size(), 6u);
-    EXPECT_GE(result.agreement, result.agreement_at_one);
-    std::printf("rig at %.2f: measured %.4f (true %.4f), agreement %.0f against %.0f at 1, %d samples\n", factor, result.scale, 1 / factor,
-                result.agreement, result.agreement_at_one, result.samples);
+    std::printf("rig at %.2f: measured %.4f (true %.4f), agreement %.0f, %d samples\n", factor, result.scale, 1 / factor, result.agreement,
+                result.samples);
   }
 }
 

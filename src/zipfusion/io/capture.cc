@@ -221,7 +221,11 @@ fs::path Capture::color_path(int frame, int camera) const {
   return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, file == ColorFile::kJpg ? ".jpg" : ".png");
 }
 
-CameraFrame Capture::load_camera_frame(int frame, int camera) const {
+CameraFrame Capture::load_camera_frame(int frame, int camera) const { return load(frame, camera, true); }
+
+CameraFrame Capture::load_camera_depth(int frame, int camera) const { return load(frame, camera, false); }
+
+CameraFrame Capture::load(int frame, int camera, bool with_color) const {
   assert(frame >= 0 && frame < frame_count() && camera >= 0 && camera < camera_count());
   const CameraModel& model = rig_.cameras[camera];
   CameraFrame out;
@@ -248,7 +252,7 @@ CameraFrame Capture::load_camera_frame(int frame, int camera) const {
   } else if (options_.strict) {
     throw InvalidInput(depth_file.string() + ": missing frame");
   }
-  if (model.has_color()) {
+  if (with_color && model.has_color()) {
     const fs::path color_file = color_path(frame, camera);
     if (!color_file.empty() && frame_file_present(color_file)) {
       out.has_color = decode_or_leave_out([&] {

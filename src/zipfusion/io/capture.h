@@ -84,6 +84,8 @@ class Capture {
   //! nearest to where its ray falls (0 where that lies outside the image), so the rest of
   //! zipfusion, which back-projects depth through the pinhole model, sees straight rays.
   CameraFrame load_camera_frame(int frame, int camera) const;
+  //! The same without the colour image (has_color false): for work that reads only depth.
+  CameraFrame load_camera_depth(int frame, int camera) const;
   FrameSet load_frame(int frame) const;
 
   //! Reads the frames through another calibration of the same cameras (a `--rig`): its depth
@@ -99,6 +101,7 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
+  CameraFrame load(int frame, int camera, bool with_color) const;
   std::vector<std::vector<ColorFile>> color_file_;  // [camera][frame]
   std::vector<std::vector<int>> depth_undistortion_;  // depth_undistortion_maps(rig_)
 };

@@ -152,6 +152,11 @@ TEST_F(SmallCapture, AnUnusableFrameFileDegradesLikeAMissingOne) {
   EXPECT_TRUE(set1.cameras[0].color.empty());
   EXPECT_EQ(unreadable_files(set1), std::vector<std::string>{color.string() + ": not a JPEG or PNG file"});
   EXPECT_TRUE(unreadable_files(capture.load_frame(0)).empty());
+  // Depth alone does not decode the colour, nor report it.
+  const CameraFrame depth_only = capture.load_camera_depth(1, 0);
+  EXPECT_EQ(depth_only.depth, ramp_depth(kWidth, kHeight, 1));
+  EXPECT_FALSE(depth_only.has_color);
+  EXPECT_TRUE(depth_only.unreadable.empty());
 }
 
 // A frame "file" that cannot be read (here a folder) is left out like an undecodable one.
