@@ -37,8 +37,9 @@ class DepthScale : public ::testing::Test {
 TEST_F(DepthScale, FindsTheFactorARigIsOffBy) {
   const SynthResult written = write_synthetic_capture(dir_ / "ring", ring());
   const Capture capture = Capture::open(dir_ / "ring");
-  // A rig as a wrong LED distance leaves it: right but for its size about camera 0.
-  for (const double factor : {0.85, 0.96, 1.0, 1.03, 1.12}) {
+  // A rig as a wrong LED distance leaves it: right but for its size about camera 0 (0.7 and 1.45:
+  // an LED distance off by a half and by a third).
+  for (const double factor : {0.7, 0.85, 0.96, 1.0, 1.03, 1.12, 1.45}) {
     const Rig scaled = scale_rig(written.true_rig, 0, factor);
     const DepthScaleResult result = measure_depth_scale(capture, scaled, 0, {.frames = 6});
     ASSERT_TRUE(result.measured) << factor << ": " << result.not_measured;
