@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/folder_test_util.h"
 #include "zipfusion/io/image_io.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/synth/synth.h"
@@ -18,15 +19,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class DepthScale : public ::testing::Test {
+class DepthScale : public FolderTest {
  protected:
-  fs::path dir_ = fs::temp_directory_path() / ("zf_depth_scale_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-
-  void SetUp() override {
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  DepthScale() : FolderTest("zf_depth_scale_test_") {}
 
   // A 4-camera ring at 320×240 with the Kinect noise model: the person walking, and the floor.
   static SynthOptions ring() {

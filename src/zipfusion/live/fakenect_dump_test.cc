@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/folder_test_util.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/live/kinect_disparity.h"
 #include "zipfusion/live/replay_camera.h"
@@ -37,14 +38,9 @@ ColorImage pattern_rgb(int seed) {
   return c;
 }
 
-class FakenectDump : public ::testing::Test {
+class FakenectDump : public FolderTest {
  protected:
-  fs::path dir_ = fs::temp_directory_path() / ("zf_fakenect_dump_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-  void SetUp() override {
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  FakenectDump() : FolderTest("zf_fakenect_dump_test_") {}
 
   // A dump of `frames` frames as synth --fakenect lays it out: colour, then depth 1 ms later.
   std::vector<FakenectIndexEntry> write_dump(int frames) {
