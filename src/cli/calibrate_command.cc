@@ -344,8 +344,9 @@ void add_calibrate_command(CLI::App& app) {
       ->allow_extra_args(false)
       ->type_name("CAMERA=FILE");
   extr->add_option("--scale", ex->scale,
-                   "check: the scale from --led-distance, refused where the depth cameras measure the rig more than --scale-tolerance "
-                   "larger or smaller; depth: the scale the depth measures; led: --led-distance's, unchecked")
+                   "check: the scale from --led-distance, refused where it puts the cameras more than --scale-tolerance of their distance "
+                   "from camera 0 nearer or farther than the depth cameras measure; depth: the scale the depth measures; led: "
+                   "--led-distance's, unchecked")
       ->check(CLI::IsMember({"check", "depth", "led"}))
       ->capture_default_str();
   extr->add_option("--scale-tolerance", ex->scale_tolerance,

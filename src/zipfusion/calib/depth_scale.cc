@@ -39,9 +39,10 @@ struct PairGeometry {
   Rigid3f j_from_i;
   Eigen::Vector3f baseline_in_j;  // unit
   Eigen::Vector3f d_q_d_scale;    // how a point of i seen from j moves as the scale grows, j's frame
+  bool compared = false;          // the two cameras look at most max_pair_angle_deg apart
 };
 
-std::vector<PairGeometry> pair_geometry(const Rig& rig, int gauge, double scale) {
+std::vector<PairGeometry> pair_geometry(const Rig& rig, int gauge, double scale, double max_pair_angle_deg) {
   const Rig scaled = scale_rig(rig, gauge, scale);
   const int n = static_cast<int>(rig.cameras.size());
   std::vector<PairGeometry> pairs(static_cast<size_t>(n) * n);
@@ -58,6 +59,7 @@ std::vector<PairGeometry> pair_geometry(const Rig& rig, int gauge, double scale)
       // R_jᵀ(c_i − c_j) per unit of s (c at scale 1).
       const Eigen::Vector3d offset = world_from_calibrated(rig.cameras[i]).translation() - world_from_calibrated(rig.cameras[j]).translation();
       g.d_q_d_scale = (world_from_j.linear().transpose() * offset).cast<float>();
+      g.compared = world_from_i.linear().col(2).dot(world_from_j.linear().col(2)) >= std::cos(max_pair_angle_deg * std::numbers::pi / 180);
     }
   }
   return pairs;
@@ -75,6 +77,7 @@ void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector
     for (int j = 0; j < n; ++j) {
       if (i == j) continue;
       const PairGeometry& g = pairs[static_cast<size_t>(i) * n + j];
+      if (!g.compared) continue;
       const Intrinsics& k = rig.cameras[j].depth_intrinsics;
       const auto fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
       for (const FrameDepth& frame : frames) {
@@ -105,7 +108,7 @@ void for_each_covisible(const std::vector<FrameDepth>& frames, const std::vector
 // cameras' baseline. A surface parallel to the baseline (the floor between cameras at one height)
 // agrees at every scale and would only add how much of it the two happen to share.
 double agreement_at(const std::vector<FrameDepth>& frames, const Rig& rig, int gauge, double scale, const DepthScaleOptions& options) {
-  const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
+  const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale, options.max_pair_angle_deg);
   const double sigma_m = options.agreement_m;
   const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
   const auto cutoff = static_cast<float>(3 * sigma_m);
@@ -128,7 +131,7 @@ double refine_scale(const std::vector<FrameDepth>& frames, const Rig& rig, int g
   const auto inv_two_sigma2 = static_cast<float>(1.0 / (2 * sigma_m * sigma_m));
   const auto cutoff = static_cast<float>(3 * sigma_m);
   for (int iteration = 0; iteration < 30; ++iteration) {
-    const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale);
+    const std::vector<PairGeometry> pairs = pair_geometry(rig, gauge, scale, options.max_pair_angle_deg);
     double jtj = 0, jtr = 0;
     for_each_covisible(frames, pairs, rig, options, [&](const Eigen::Vector3f& q, const Eigen::Vector3f& normal, float measured, int pu, int pv,
                                                const PairGeometry& g, const Intrinsics& k) {
@@ -161,6 +164,7 @@ void DepthScaleOptions::validate() const {
   if (!(agreement_m > 0 && agreement_m < 1)) fail("agreement_m", "must be in (0, 1) metres");
   if (!(min_agreement >= 0) || !(min_peak_ratio >= 1)) fail("min_agreement", "need min_agreement >= 0 and min_peak_ratio >= 1");
   if (!(max_view_angle_deg > 0 && max_view_angle_deg < 90)) fail("max_view_angle_deg", "must be in (0, 90) degrees");
+  if (!(max_pair_angle_deg > 0 && max_pair_angle_deg <= 180)) fail("max_pair_angle_deg", "must be in (0, 180] degrees");
 }
 
 Rig scale_rig(const Rig& rig, int gauge, double scale) {
@@ -273,21 +277,22 @@ DepthScaleResult measure_depth_scale(const Capture& capture, const Rig& rig, int
   const auto best = static_cast<int>(std::max_element(values.begin(), values.end()) - values.begin());
   const bool inside = best >= shoulder && best + shoulder < steps;
   const double peak_ratio = inside ? values[best] / std::max({values[best - shoulder], values[best + shoulder], 1e-9}) : 1.0;
-  char detail[300];
+  char detail[512];
   const double highest = values[best];
   if (highest < options.min_agreement) {
     std::snprintf(detail, sizeof detail,
-                  "the depth in the %s shows too little that two cameras both see, facing across the line between them, to measure the "
-                  "rig's size (agreement %.0f of %.0f needed; a floor alone agrees at every size)",
-                  frame_span, highest, options.min_agreement);
+                  "the depth in the %s shows too little that two cameras both see, facing partly along the line between them, at any "
+                  "size from %.2f to %.2f times the rig's (agreement %.0f of %.0f needed; a floor alone, or cameras facing each other, show "
+                  "too little)",
+                  frame_span, options.lowest_scale, options.highest_scale, highest, options.min_agreement);
     result.not_measured = detail;
     return result;
   }
   if (peak_ratio < options.min_peak_ratio) {
     std::snprintf(detail, sizeof detail,
-                  "the depth in the %s agrees about as well at every size from %.2f to %.2f times the rig's (a floor alone, or two cameras "
-                  "facing each other, show nothing that fixes it)",
-                  frame_span, options.lowest_scale, options.highest_scale);
+                  "the depth in the %s shows no size from %.2f to %.2f times the rig's at which the cameras' surfaces clearly meet (its best, "
+                  "%.2f, stands %.2f times over the agreement 4.5 %% to either side, %.2f needed)",
+                  frame_span, options.lowest_scale, options.highest_scale, factor(best), peak_ratio, options.min_peak_ratio);
     result.not_measured = detail;
     return result;
   }

@@ -8,8 +8,9 @@
 //! others and compared with the depth measured there; the s at which they agree best is the factor
 //! the rig is off by. A plane alone (the floor) agrees at every s and measures nothing: a person
 //! or furniture that two cameras see, facing partly along the line between them, does. Cameras
-//! that face each other, or stand 120° apart around a person, share too little of such surface for
-//! a measurement at 320×240 (docs/design.md).
+//! that face each other are not compared (their shared surfaces fix no size), and cameras 120°
+//! apart around a person share too little for a measurement at 320×240 most of the time
+//! (docs/design.md).
 //! Thread safety: pure functions; parallel inside (`num_threads`).
 
 #include <string>
@@ -25,9 +26,13 @@ struct DepthScaleOptions {
   int pixel_step = 4;              // every pixel_step-th pixel of every pixel_step-th row at 640 pixels wide (scaled with the width)
   double min_depth_m = 0.4;        // depth outside [min, max] is not used (a Kinect's range)
   double max_depth_m = 4.5;
-  double lowest_scale = 0.5;       // the factors searched, every 1.5 % (a wand off by up to a factor of 2)
-  double highest_scale = 2.0;
+  double lowest_scale = 0.25;      // the factors searched, every 1.5 %, the outer 4.5 % as shoulders only
+  double highest_scale = 4.0;
   double max_view_angle_deg = 80;  // a point is compared where its surface faces the other camera at most this obliquely
+  // Cameras whose optical axes lie further apart are not compared: facing each other, they share
+  // only surfaces parallel to the line between them (the body's sides), which fix no size, and
+  // the floor's far edges, which fix it only roughly (2 % off on a 2-camera ring).
+  double max_pair_angle_deg = 135;
   // σ of the Gaussian weight of a depth difference, metres: a Kinect v1's noise at 2.5–3 m is
   // 1.0–1.3 cm, and two cameras' readings differ by √2 of it.
   double agreement_m = 0.02;
