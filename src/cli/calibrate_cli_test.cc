@@ -119,6 +119,7 @@ TEST_F(CalibrateCli, ChecksTheLedDistanceAgainstTheDepth) {
   EXPECT_NE(r.out.find("scale: from --led-distance 0.4450 m alone (the depth cannot check it: no depth in the 8 frames from 7 to 112)"),
             std::string::npos)
       << r.out;
+  EXPECT_EQ(r.err, "calibrate: warning: --led-distance is unchecked: the depth cannot measure the rig's scale (see above)\n");
   EXPECT_LT(worst_position_m(read_rig(out), truth), 0.01);
 }
 

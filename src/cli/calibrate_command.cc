@@ -208,6 +208,8 @@ Rig rig_at_checked_scale(const ExtrinsicsArgs& args, const Capture& capture, con
   if (!depth.measured) {
     if (args.scale == "depth") throw InvalidInput("--scale depth: " + capture.dir().string() + ": " + depth.not_measured);
     std::printf("scale: from --led-distance %.4f m alone (the depth cannot check it: %s)\n", led_m, depth.not_measured.c_str());
+    // Asked to check, and it could not: said where warnings go, not only in the report.
+    if (args.scale == "check") print_diagnostic("calibrate: warning: --led-distance is unchecked: the depth cannot measure the rig's scale (see above)");
     return result.rig;
   }
   // How far the cameras lie from where the depth puts them, as a share of their distance from camera 0.
