@@ -30,13 +30,16 @@ class CalibrateCli : public testing::CliTest {
     const size_t at = out.find(before);
     return at == std::string::npos ? 0 : std::stod(out.substr(at + before.size()));
   }
-  // The largest distance of a camera from where the truth has it, metres.
-  static double worst_position_m(const Rig& calibrated, const Rig& truth) {
-    double worst = 0;
+  // The largest distance (metres) and rotation (degrees) of a camera from where the truth has it.
+  static std::pair<double, double> worst_error(const Rig& calibrated, const Rig& truth) {
+    double worst_m = 0, worst_deg = 0;
     for (size_t c = 0; c < truth.cameras.size(); ++c) {
-      worst = std::max(worst, (calibrated.cameras[c].world_from_depth.translation() - truth.cameras[c].world_from_depth.translation()).norm());
+      const Rigid3d& est = calibrated.cameras[c].world_from_depth;
+      const Rigid3d& tru = truth.cameras[c].world_from_depth;
+      worst_m = std::max(worst_m, (est.translation() - tru.translation()).norm());
+      worst_deg = std::max(worst_deg, rotation_angle_deg(tru.inverse() * est));
     }
-    return worst;
+    return {worst_m, worst_deg};
   }
   // Moves the capture's rig (its truth) into camera 0's frame, levels it with `calibrate floor
   // CAPTURE OPTIONS`, and compares the result with the truth (expect_levelled_like_truth).
@@ -98,12 +101,12 @@ TEST_F(CalibrateCli, ChecksTheLedDistanceAgainstTheDepth) {
   r = run(calibrate + " --scale depth");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NEAR(depth_scale_in(r.out), 0.445 / 0.4, 0.01) << r.out;
-  EXPECT_LT(worst_position_m(read_rig(out), truth), 0.04);  // the depth's scale is good to about 0.5 % (camera 2 is 5 m away)
+  EXPECT_LT(worst_error(read_rig(out), truth).first, 0.04);  // the depth's scale is good to about 0.5 % (camera 2 is 5 m away)
 
   r = run(calibrate + " --scale led");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NEAR(depth_scale_in(r.out), 0.445 / 0.4, 0.01) << r.out;
-  EXPECT_GT(worst_position_m(read_rig(out), truth), 0.4);  // camera 2, 5 m from camera 0, lies 10 % of that short
+  EXPECT_GT(worst_error(read_rig(out), truth).first, 0.4);  // camera 2, 5 m from camera 0, lies 10 % of that short
 
   // Blank depth, as the wand captures of earlier versions have it.
   for (const CameraModel& camera : truth.cameras) {
@@ -120,7 +123,7 @@ TEST_F(CalibrateCli, ChecksTheLedDistanceAgainstTheDepth) {
             std::string::npos)
       << r.out;
   EXPECT_EQ(r.err, "calibrate: warning: --led-distance is unchecked: the depth cannot measure the rig's scale (see above)\n");
-  EXPECT_LT(worst_position_m(read_rig(out), truth), 0.01);
+  EXPECT_LT(worst_error(read_rig(out), truth).first, 0.01);
 }
 
 // Calibrated intrinsics given per camera (`--intrinsics NAME=FILE`, the files `calibrate
@@ -150,28 +153,18 @@ TEST_F(CalibrateCli, TakesEachCamerasCalibratedIntrinsicsIntoTheRig) {
     depth_files += " --depth-intrinsics" + write_intrinsics(model.name + "_depth.json", truth.cameras[c].depth_intrinsics);
   }
   write_rig(capture / "rig.json", nominal);
-  auto worst_error = [&](const Rig& calibrated) {
-    double worst_m = 0, worst_deg = 0;
-    for (size_t c = 0; c < truth.cameras.size(); ++c) {
-      const Rigid3d& est = calibrated.cameras[c].world_from_depth;
-      const Rigid3d& tru = truth.cameras[c].world_from_depth;
-      worst_m = std::max(worst_m, (est.translation() - tru.translation()).norm());
-      worst_deg = std::max(worst_deg, rotation_angle_deg(tru.inverse() * est));
-    }
-    return std::pair{worst_m, worst_deg};
-  };
 
   const fs::path nominal_out = dir_ / "nominal.json";
   CommandResult r = run("calibrate extrinsics " + capture.string() + " --out " + nominal_out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_GT(worst_error(read_rig(nominal_out)).first, 0.05);  // the wrong focal lengths misplace the cameras
+  EXPECT_GT(worst_error(read_rig(nominal_out), truth).first, 0.05);  // the wrong focal lengths misplace the cameras
 
   // The options before the capture: each takes one CAMERA=FILE, never the capture after it.
   const fs::path out = dir_ / "rig.json";
   r = run("calibrate extrinsics" + color_files + depth_files + " " + capture.string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Rig calibrated = read_rig(out);
-  const auto [error_m, error_deg] = worst_error(calibrated);
+  const auto [error_m, error_deg] = worst_error(calibrated, truth);
   EXPECT_LT(error_m, 0.01);  // as CalibratesAWandCaptureIntoARigTheReaderLoads
   EXPECT_LT(error_deg, 0.4);
   for (size_t c = 0; c < truth.cameras.size(); ++c) {

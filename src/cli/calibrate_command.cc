@@ -37,7 +37,7 @@ struct ExtrinsicsArgs {
   int threads = 0;
   std::vector<std::string> color_intrinsics, depth_intrinsics;  // NAME=FILE each
   std::string scale = "check";    // --scale: check (the LED distance's, refused where the depth disagrees), led, depth
-  double scale_tolerance = 0.02;  // --scale-tolerance: how far the depth's scale may lie from the LED distance's, a fraction
+  double scale_tolerance = 0.02;  // --scale-tolerance: how far the cameras may lie from where the depth puts them, a share of their distance from camera 0
 };
 
 struct FloorArgs {

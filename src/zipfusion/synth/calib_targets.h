@@ -49,8 +49,9 @@ ColorImage render_wand_view(const Intrinsics& k, const Rigid3d& color_from_world
 
 //! A wand capture of the ring rig `rig_options` describes: rig.json (poses perturbed by
 //! rig_options.miscalibrate_*, camera 0 true), colour PNGs, depth PNGs of the person waving the
-//! wand (rig_options' subject, noise and floor; the wand is too thin for depth), ground_truth/rig.json and ground_truth/wand.json (the true LED positions). Written
-//! into a temporary sibling folder and renamed into place; `out_dir` must not exist or be empty.
+//! wand (rig_options' subject, noise and floor; the wand is too thin for depth),
+//! ground_truth/rig.json and ground_truth/wand.json (the true LED positions). Written into a
+//! temporary sibling folder and renamed into place; `out_dir` must not exist or be empty.
 SynthResult write_wand_capture(const std::filesystem::path& out_dir, const SynthOptions& rig_options,
                                const WandOptions& options, const std::function<void(int, int)>& progress = {});
 

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/folder_test_util.h"
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
@@ -201,11 +202,9 @@ TEST(Synth, ColourImageShowsTheSubjectsColours) {
   }
 }
 
-class SynthCapture : public ::testing::Test {
+class SynthCapture : public FolderTest {
  protected:
-  fs::path dir_ = fs::temp_directory_path() / ("zf_synth_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-  void SetUp() override { fs::remove_all(dir_); fs::create_directories(dir_); }
-  void TearDown() override { fs::remove_all(dir_); }
+  SynthCapture() : FolderTest("zf_synth_test_") {}
 };
 
 TEST_F(SynthCapture, WritesALoadableCaptureDeterministically) {
