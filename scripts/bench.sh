@@ -127,7 +127,8 @@ step "kernels (Google Benchmark)"
 "$BUILD_DIR/zf_kernel_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/kernels.json"
 "$BUILD_DIR/zf_micro_bench" --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_format=json > "$OUT/micro.json"
 
-step "writing docs/benchmarks.md"
+step "writing docs/benchmarks.md and the README's summary of it"
 python3 scripts/bench_report.py "$OUT" > docs/benchmarks.md.tmp
 mv docs/benchmarks.md.tmp docs/benchmarks.md
-echo "wrote docs/benchmarks.md (raw results in $OUT)"
+python3 scripts/bench_report.py "$OUT" --readme README.md
+echo "wrote docs/benchmarks.md and the README's summary (raw results in $OUT)"
