@@ -92,7 +92,7 @@ TEST_F(RegisterCli, ANarrowFitWindowRegistersNoiseFreeLowResolutionDepthClosely)
   const CommandResult zero = run("register " + capture + " --out " + out + "2 --fit-radius 0");
   EXPECT_EQ(zero.exit_code, 2) << zero.out;
   EXPECT_EQ(line_count(zero.err), 1) << zero.err;
-  EXPECT_NE(zero.err.find("fit-radius: must be in [1, 16] pixels"), std::string::npos) << zero.err;
+  EXPECT_NE(zero.err.find("--fit-radius: must be in [1, 16] pixels"), std::string::npos) << zero.err;
   EXPECT_FALSE(fs::exists(out + "2"));
 }
 
@@ -205,12 +205,12 @@ TEST_F(RegisterCli, BadInputGivesOneLineAndNonZeroExit) {
       {"register " + capture + " --out " + out + " --frames 5:9", "--frames"},
       {"register " + capture + " --out " + out + " --max-frames 0", "--max-frames"},
       // The options as the command line names them, not as RegistrationOptions' fields.
-      {"register " + capture + " --out " + out + " --trim 1.5", "zipfusion: error: trim: must be in [0, 1)"},
-      {"register " + capture + " --out " + out + " --min-noise-cos 2", "zipfusion: error: min-noise-cos: must be in [0, 1]"},
-      {"register " + capture + " --out " + out + " --max-pair-view-angle 0", "zipfusion: error: max-pair-view-angle: must be in (0, 90] degrees"},
-      {"register " + capture + " --out " + out + " --coarsest-level 1 --finest-level 3", "zipfusion: error: finest-level: must be in [0, coarsest-level]"},
-      {"register " + capture + " --out " + out + " --iterations 0", "zipfusion: error: iterations: must be in [1, 100] per level"},
-      {"register " + capture + " --out " + out + " --start-distance -1", "zipfusion: error: start-distance: must be positive (metres)"},
+      {"register " + capture + " --out " + out + " --trim 1.5", "zipfusion: error: --trim: must be in [0, 1)"},
+      {"register " + capture + " --out " + out + " --min-noise-cos 2", "zipfusion: error: --min-noise-cos: must be in [0, 1]"},
+      {"register " + capture + " --out " + out + " --max-pair-view-angle 0", "zipfusion: error: --max-pair-view-angle: must be in (0, 90] degrees"},
+      {"register " + capture + " --out " + out + " --coarsest-level 1 --finest-level 3", "zipfusion: error: --finest-level: must be in [0, --coarsest-level]"},
+      {"register " + capture + " --out " + out + " --iterations 0", "zipfusion: error: --iterations: must be in [1, 100] per level"},
+      {"register " + capture + " --out " + out + " --start-distance -1", "zipfusion: error: --start-distance: must be positive (metres)"},
       {"register " + capture + " --out " + out + " --rig " + (dir_ / "none.json").string(), "none.json"},
       // Checked before the registration, so that its work is not lost.
       {"register " + capture + " --out " + (dir_ / "no" / "such" / "dir.json").string(),

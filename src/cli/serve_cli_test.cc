@@ -169,8 +169,8 @@ TEST_F(ServeCli, BadOptionsGiveOneLineAndNonZeroExit) {
       {"serve " + capture + " --bind not-an-address --port 0", "--bind"},
       {"serve " + capture + " --token 'a b' --port 0", "--token"},
       {"serve " + capture + " --web " + (dir_ / "nowhere").string() + " --port 0", "index.html"},
-      {"serve " + capture + " --lod 9 --port 0", "lod"},
-      {"serve " + capture + " --position-bits 0 --port 0", "position-bits"},
+      {"serve " + capture + " --lod 9 --port 0", "--lod: must be in [0, 3]"},
+      {"serve " + capture + " --position-bits 0 --port 0", "--position-bits: must be in [1, 30]"},
       {"serve " + (dir_ / "missing").string() + " --port 0", "missing"},
   };
   for (const Case& c : cases) {

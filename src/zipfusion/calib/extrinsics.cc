@@ -118,15 +118,15 @@ void require_two_cameras(const Rig& rig, const std::string& rig_file) {
 void ExtrinsicOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
-    fail("led-distance", wand_distance_rule());
+    fail("--led-distance", wand_distance_rule());
   }
-  if (min_common_frames < 8) fail("min-common-frames", "must be >= 8 (the 8-point algorithm needs 8 correspondences)");
-  if (!(ransac_threshold_px > 0 && ransac_threshold_px < 50)) fail("ransac-threshold", "must be in (0, 50) pixels");
-  if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac-confidence", "must be in (0, 1)");
-  if (!(huber_px > 0)) fail("huber", "must be positive");
-  if (!(distance_sigma_m > 0)) fail("distance-sigma", "must be positive");
-  if (!(outlier_px > 0)) fail("outlier", "must be positive");
-  if (max_iterations < 1) fail("max-iterations", "must be >= 1");
+  if (min_common_frames < 8) fail("--min-common-frames", "must be >= 8 (the 8-point algorithm needs 8 correspondences)");
+  if (!(ransac_threshold_px > 0 && ransac_threshold_px < 50)) fail("ransac_threshold_px", "must be in (0, 50) pixels");
+  if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac_confidence", "must be in (0, 1)");
+  if (!(huber_px > 0)) fail("huber_px", "must be positive");
+  if (!(distance_sigma_m > 0)) fail("distance_sigma_m", "must be positive");
+  if (!(outlier_px > 0)) fail("outlier_px", "must be positive");
+  if (max_iterations < 1) fail("max_iterations", "must be >= 1");
 }
 
 WandObservations detect_wand(const Capture& capture, const LedDetectionOptions& options, int num_threads,

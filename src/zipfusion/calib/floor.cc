@@ -218,16 +218,16 @@ Eigen::Vector3d looked_at_on_floor(const Rig& rig, const Plane& floor) {
 
 void FloorOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (first_frame < 0 || end_frame <= first_frame) fail("frames", "need 0 <= first < end");
-  if (pixel_step < 1 || pixel_step > 64) fail("pixel-step", "must be in [1, 64]");
-  if (!(inlier_distance_m > 0.001 && inlier_distance_m < 0.5)) fail("inlier-distance", "must be in (0.001, 0.5) metres");
-  if (!(max_tilt_deg > 0 && max_tilt_deg < 90)) fail("max-tilt", "must be in (0, 90) degrees");
-  if (!(min_camera_height_m >= 0 && min_camera_height_m < 10)) fail("min-camera-height", "must be in [0, 10) metres");
-  if (ransac_iterations < 1 || ransac_iterations > 1000000) fail("ransac-iterations", "must be in [1, 1000000]");
+  if (first_frame < 0 || end_frame <= first_frame) fail("--frames", "need 0 <= first < end");
+  if (pixel_step < 1 || pixel_step > 64) fail("pixel_step", "must be in [1, 64]");
+  if (!(inlier_distance_m > 0.001 && inlier_distance_m < 0.5)) fail("--inlier-distance", "must be in (0.001, 0.5) metres");
+  if (!(max_tilt_deg > 0 && max_tilt_deg < 90)) fail("max_tilt_deg", "must be in (0, 90) degrees");
+  if (!(min_camera_height_m >= 0 && min_camera_height_m < 10)) fail("min_camera_height_m", "must be in [0, 10) metres");
+  if (ransac_iterations < 1 || ransac_iterations > 1000000) fail("ransac_iterations", "must be in [1, 1000000]");
   if (!(volume_half_width_m == 0 || (volume_half_width_m >= 0.1 && volume_half_width_m <= 50))) {
-    fail("volume-half-width", "must be 0 (automatic) or in [0.1, 50] metres");
+    fail("--volume-half-width", "must be 0 (automatic) or in [0.1, 50] metres");
   }
-  if (!(volume_height_m >= 0.1 && volume_height_m <= 20)) fail("volume-height", "must be in [0.1, 20] metres");
+  if (!(volume_height_m >= 0.1 && volume_height_m <= 20)) fail("--volume-height", "must be in [0.1, 20] metres");
 }
 
 FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& options) {

@@ -122,10 +122,10 @@ constexpr double kSameViewPx = 1.0;
 
 void BoardOptions::validate() const {
   if (inner_columns < kFewestBoardCorners || inner_rows < kFewestBoardCorners || inner_columns > kMostBoardCorners || inner_rows > kMostBoardCorners) {
-    throw InvalidInput("board: needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) +
+    throw InvalidInput("--board: needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) +
                        " inner corners each way, got " + std::to_string(inner_columns) + "x" + std::to_string(inner_rows));
   }
-  if (!(square_m > 0 && square_m < 10)) throw InvalidInput("square: must be in (0, 10) metres");
+  if (!(square_m > 0 && square_m < 10)) throw InvalidInput("--square: must be in (0, 10) metres");
 }
 
 void IntrinsicOptions::validate() const {

@@ -8,9 +8,9 @@
 namespace zipfusion {
 
 void SdcOptions::validate() const {
-  if (!(max_depth_jump_m > 0 && max_depth_jump_m < 1)) throw InvalidInput("max-depth-jump: must be in (0, 1) metres");
+  if (!(max_depth_jump_m > 0 && max_depth_jump_m < 1)) throw InvalidInput("--max-depth-jump: must be in (0, 1) metres");
   if (!(growth_depth_m == 0 || (growth_depth_m >= 0.1 && growth_depth_m <= 20)))
-    throw InvalidInput("max-depth-jump-growth: must be 0 (constant) or in [0.1, 20] metres");
+    throw InvalidInput("--max-depth-jump-growth: must be 0 (constant) or in [0.1, 20] metres");
 }
 
 ZF_ROW_KERNEL void sdc_row(const float* depth, int width, int count, DepthJump max_jump, std::uint8_t* bits) {

@@ -15,8 +15,8 @@
 namespace zipfusion {
 
 void DracoOptions::validate() const {
-  if (position_bits < 1 || position_bits > 30) throw InvalidInput("position-bits: must be in [1, 30]");
-  if (compression_level < 0 || compression_level > 10) throw InvalidInput("compression-level: must be in [0, 10]");
+  if (position_bits < 1 || position_bits > 30) throw InvalidInput("--position-bits: must be in [1, 30]");
+  if (compression_level < 0 || compression_level > 10) throw InvalidInput("--compression-level: must be in [0, 10]");
 }
 
 float QuantizationBox::max_error(int bits) const {

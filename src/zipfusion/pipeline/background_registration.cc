@@ -5,8 +5,8 @@
 namespace zipfusion {
 
 void BackgroundRegistrationOptions::validate() const {
-  if (every_frames < 1) throw InvalidInput("register-every: must be at least 1 frame");
-  if (window_frames < 1 || window_frames > 64) throw InvalidInput("register-window: must be in [1, 64] frames");
+  if (every_frames < 1) throw InvalidInput("--register-every: must be at least 1 frame");
+  if (window_frames < 1 || window_frames > 64) throw InvalidInput("--register-window: must be in [1, 64] frames");
   registration.validate();
 }
 

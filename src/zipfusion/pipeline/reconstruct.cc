@@ -49,7 +49,7 @@ Rig at_depth_level(Rig rig, int level) {
 }  // namespace
 
 void ReconstructOptions::validate() const {
-  if (depth_level < 0 || depth_level > 3) throw InvalidInput("lod: must be in [0, 3]");
+  if (depth_level < 0 || depth_level > 3) throw InvalidInput("--lod: must be in [0, 3]");
   foreground.validate();
   filter.validate();
   sdc.validate();

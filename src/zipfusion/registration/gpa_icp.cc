@@ -14,23 +14,23 @@
 namespace zipfusion {
 
 void RegistrationOptions::validate() const {
-  if (coarsest_level < 0 || coarsest_level > 5) throw InvalidInput("coarsest-level: must be in [0, 5]");
-  if (finest_level < 0 || finest_level > coarsest_level) throw InvalidInput("finest-level: must be in [0, coarsest-level]");
-  if (iterations_per_level < 1 || iterations_per_level > 100) throw InvalidInput("iterations: must be in [1, 100] per level");
-  if (!(start_distance_m > 0)) throw InvalidInput("start-distance: must be positive (metres)");
-  if (!(end_distance_m > 0 && end_distance_m <= start_distance_m)) throw InvalidInput("end-distance: must be in (0, start-distance] (metres)");
+  if (coarsest_level < 0 || coarsest_level > 5) throw InvalidInput("--coarsest-level: must be in [0, 5]");
+  if (finest_level < 0 || finest_level > coarsest_level) throw InvalidInput("--finest-level: must be in [0, --coarsest-level]");
+  if (iterations_per_level < 1 || iterations_per_level > 100) throw InvalidInput("--iterations: must be in [1, 100] per level");
+  if (!(start_distance_m > 0)) throw InvalidInput("--start-distance: must be positive (metres)");
+  if (!(end_distance_m > 0 && end_distance_m <= start_distance_m)) throw InvalidInput("--end-distance: must be in (0, --start-distance] (metres)");
   if (!(max_normal_angle_deg > 0 && max_normal_angle_deg <= 180)) throw InvalidInput("registration.max_normal_angle_deg: must be in (0, 180]");
   if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 90)) throw InvalidInput("registration.max_view_angle_deg: must be in (0, 90]");
-  if (!(max_pair_view_angle_deg > 0 && max_pair_view_angle_deg <= 90)) throw InvalidInput("max-pair-view-angle: must be in (0, 90] degrees");
-  if (!(min_noise_cos >= 0 && min_noise_cos <= 1)) throw InvalidInput("min-noise-cos: must be in [0, 1]");
-  if (fit_radius_px < 1 || fit_radius_px > 16) throw InvalidInput("fit-radius: must be in [1, 16] pixels");
+  if (!(max_pair_view_angle_deg > 0 && max_pair_view_angle_deg <= 90)) throw InvalidInput("--max-pair-view-angle: must be in (0, 90] degrees");
+  if (!(min_noise_cos >= 0 && min_noise_cos <= 1)) throw InvalidInput("--min-noise-cos: must be in [0, 1]");
+  if (fit_radius_px < 1 || fit_radius_px > 16) throw InvalidInput("--fit-radius: must be in [1, 16] pixels");
   if (!(fit_gate_m > 0)) throw InvalidInput("registration.fit_gate_m: must be positive");
   if (normal_step_px < 1 || normal_step_px > 32) throw InvalidInput("registration.normal_step_px: must be in [1, 32]");
-  if (!(trim_fraction >= 0 && trim_fraction < 1)) throw InvalidInput("trim: must be in [0, 1)");
+  if (!(trim_fraction >= 0 && trim_fraction < 1)) throw InvalidInput("--trim: must be in [0, 1)");
   if (min_correspondences < 6) throw InvalidInput("registration.min_correspondences: must be at least 6");
   if (!(converged_rad >= 0)) throw InvalidInput("registration.converged_rad: must be >= 0");
-  if (!(below_volume_m >= 0)) throw InvalidInput("below-volume: must be >= 0 (metres)");
-  if (num_threads < 0) throw InvalidInput("threads: must be >= 0");
+  if (!(below_volume_m >= 0)) throw InvalidInput("--below-volume: must be >= 0 (metres)");
+  if (num_threads < 0) throw InvalidInput("--threads: must be >= 0");
   filter.validate();
   foreground.validate();
 }

@@ -81,14 +81,14 @@ TEST(RegistrationOptions, ValidateNamesTheField) {
     o.validate();
     FAIL() << "no exception";
   } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()), "trim: must be in [0, 1)");
+    EXPECT_EQ(std::string(e.what()), "--trim: must be in [0, 1)");
   }
   o = {};
   o.finest_level = 4;  // coarser than the coarsest
   EXPECT_THROW(o.validate(), InvalidInput);
   for (auto [field, change] : std::vector<std::pair<std::string, void (*)(RegistrationOptions&)>>{
-           {"max-pair-view-angle", [](RegistrationOptions& r) { r.max_pair_view_angle_deg = 0; }},
-           {"min-noise-cos", [](RegistrationOptions& r) { r.min_noise_cos = 1.5; }},
+           {"--max-pair-view-angle", [](RegistrationOptions& r) { r.max_pair_view_angle_deg = 0; }},
+           {"--min-noise-cos", [](RegistrationOptions& r) { r.min_noise_cos = 1.5; }},
            {"registration.fit_gate_m", [](RegistrationOptions& r) { r.fit_gate_m = 0; }}}) {
     o = {};
     change(o);

@@ -83,17 +83,17 @@ ColorImage to_color(const Image<Eigen::Vector3f>& linear, double noise_sigma, st
 
 void WandOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (frames < 2 || frames > kMostFrames) fail("frames", "must be in [2, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
+  if (frames < 2 || frames > kMostFrames) fail("--frames", "must be in [2, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
   if (!(led_distance_m > kShortestWandM && led_distance_m < kLongestWandM)) {
-    fail("led-distance", wand_distance_rule());
+    fail("--led-distance", wand_distance_rule());
   }
-  if (!(led_jitter_px >= 0 && led_jitter_px < 10)) fail("led-jitter", "must be in [0, 10) pixels");
-  if (!(led_glow_radius_m > 0 && led_glow_radius_m < 0.1)) fail("led-glow-radius", "must be in (0, 0.1) metres");
-  if (!(occlusion_probability >= 0 && occlusion_probability < 1)) fail("occlusion-probability", "must be in [0, 1)");
-  if (!(reflection_probability >= 0 && reflection_probability < 1)) fail("reflection-probability", "must be in [0, 1)");
+  if (!(led_jitter_px >= 0 && led_jitter_px < 10)) fail("--led-jitter", "must be in [0, 10) pixels");
+  if (!(led_glow_radius_m > 0 && led_glow_radius_m < 0.1)) fail("led_glow_radius_m", "must be in (0, 0.1) metres");
+  if (!(occlusion_probability >= 0 && occlusion_probability < 1)) fail("occlusion_probability", "must be in [0, 1)");
+  if (!(reflection_probability >= 0 && reflection_probability < 1)) fail("reflection_probability", "must be in [0, 1)");
   if (lamps < 0 || lamps > 100) fail("lamps", "must be in [0, 100]");
-  if (!(background_level >= 0 && background_level < 100)) fail("background-level", "must be in [0, 100) levels");
-  if (!(color_noise_sigma >= 0 && color_noise_sigma < 50)) fail("color-noise", "must be in [0, 50) levels");
+  if (!(background_level >= 0 && background_level < 100)) fail("background_level", "must be in [0, 100) levels");
+  if (!(color_noise_sigma >= 0 && color_noise_sigma < 50)) fail("--color-noise", "must be in [0, 50) levels");
 }
 
 WandSequence make_wand_sequence(const Box3d& volume, const WandOptions& options) {
@@ -212,16 +212,16 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
 
 void CheckerboardOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (views < 1 || views > 10000) fail("views", "must be in [1, 10000]");
+  if (views < 1 || views > 10000) fail("--views", "must be in [1, 10000]");
   if (inner_columns < kFewestBoardCorners || inner_rows < kFewestBoardCorners || inner_columns > kMostBoardCorners || inner_rows > kMostBoardCorners) {
-    fail("board", "needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) + " inner corners each way, got " +
+    fail("--board", "needs " + std::to_string(kFewestBoardCorners) + " to " + std::to_string(kMostBoardCorners) + " inner corners each way, got " +
                       std::to_string(inner_columns) + "x" + std::to_string(inner_rows));
   }
-  if (!(square_m > 0.001 && square_m < 1)) fail("square", "must be in (0.001, 1) metres");
+  if (!(square_m > 0.001 && square_m < 1)) fail("--square", "must be in (0.001, 1) metres");
   if (intrinsics.width < 64 || intrinsics.height < 48 || !(intrinsics.fx > 0 && intrinsics.fy > 0)) fail("intrinsics", "need a positive size and focal lengths");
   const bool automatic = min_distance_m == 0 && max_distance_m == 0;
-  if (!automatic && !(min_distance_m > 0.05 && max_distance_m >= min_distance_m)) fail("distance", "need 0.05 < min <= max metres, or both 0");
-  if (!(max_tilt_deg >= 0 && max_tilt_deg < 80)) fail("max-tilt", "must be in [0, 80) degrees");
+  if (!automatic && !(min_distance_m > 0.05 && max_distance_m >= min_distance_m)) fail("min_distance_m, max_distance_m", "need 0.05 < min <= max metres, or both 0");
+  if (!(max_tilt_deg >= 0 && max_tilt_deg < 80)) fail("max_tilt_deg", "must be in [0, 80) degrees");
   if (supersampling < 1 || supersampling > 8) fail("supersampling", "must be in [1, 8]");
 }
 

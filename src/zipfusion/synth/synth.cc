@@ -105,18 +105,18 @@ void add_color_noise(ColorImage& color, double sigma, std::uint64_t seed) {
 
 void SynthOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
-  if (frames < 1 || frames > kMostFrames) fail("frames", "must be in [1, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
-  if (!(fps > 0 && fps <= 1000)) fail("fps", "must be in (0, 1000]");
-  if (cameras < 1 || cameras > 64) fail("cameras", "must be in [1, 64]");
-  if (!(radius_m > 0.5 && radius_m < 20)) fail("radius", "must be in (0.5, 20) metres");
-  if (!(camera_height_m > 0 && camera_height_m < 10)) fail("height", "must be in (0, 10) metres");
-  if (!(target_height_m >= 0 && target_height_m < 10)) fail("target-height", "must be in [0, 10) metres");
-  if (depth_width < 32 || depth_width > 4096 || depth_height < 24 || depth_height > 4096) fail("resolution", "must be within 32x24 .. 4096x4096");
-  if (color_extension != ".jpg" && color_extension != ".png") fail("color-format", "must be jpg or png");
-  if (jpeg_quality < 1 || jpeg_quality > 100) fail("jpeg-quality", "must be in [1, 100]");
-  if (!(color_noise_sigma >= 0 && color_noise_sigma < 100)) fail("color-noise", "must be in [0, 100) levels");
-  if (!(miscalibrate_deg >= 0 && miscalibrate_deg <= 180)) fail("miscalibrate", "angle must be in [0, 180] degrees");
-  if (!(miscalibrate_m >= 0 && miscalibrate_m <= 10)) fail("miscalibrate", "distance must be in [0, 10] metres");
+  if (frames < 1 || frames > kMostFrames) fail("--frames", "must be in [1, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
+  if (!(fps > 0 && fps <= 1000)) fail("--fps", "must be in (0, 1000]");
+  if (cameras < 1 || cameras > 64) fail("--cameras", "must be in [1, 64]");
+  if (!(radius_m > 0.5 && radius_m < 20)) fail("--radius", "must be in (0.5, 20) metres");
+  if (!(camera_height_m > 0 && camera_height_m < 10)) fail("--height", "must be in (0, 10) metres");
+  if (!(target_height_m >= 0 && target_height_m < 10)) fail("--target-height", "must be in [0, 10) metres");
+  if (depth_width < 32 || depth_width > 4096 || depth_height < 24 || depth_height > 4096) fail("--resolution", "must be within 32x24 .. 4096x4096");
+  if (color_extension != ".jpg" && color_extension != ".png") fail("--color-format", "must be jpg or png");
+  if (jpeg_quality < 1 || jpeg_quality > 100) fail("--jpeg-quality", "must be in [1, 100]");
+  if (!(color_noise_sigma >= 0 && color_noise_sigma < 100)) fail("--color-noise", "must be in [0, 100) levels");
+  if (!(miscalibrate_deg >= 0 && miscalibrate_deg <= 180)) fail("--miscalibrate", "angle must be in [0, 180] degrees");
+  if (!(miscalibrate_m >= 0 && miscalibrate_m <= 10)) fail("--miscalibrate", "distance must be in [0, 10] metres");
   if (!subject_pattern.empty()) parse_frame_pattern(subject_pattern);
   human.validate();
   noise.validate();
