@@ -25,7 +25,8 @@ struct RenderBuffers {
 
 //! Draws `mesh` (world coordinates) into the buffers of a camera at `cam_from_world`, keeping the
 //! nearest surface per pixel. Colours are interpolated perspective-correctly from vertex colours
-//! (grey when the mesh has none). Triangles reaching closer than `near_m` are skipped.
+//! (grey when the mesh has none). Only what lies beyond `near_m` along the optical axis is drawn: a
+//! triangle that reaches closer is clipped there, not dropped.
 void rasterize_mesh(const TriangleMesh& mesh, const Intrinsics& k, const Rigid3d& cam_from_world, RenderBuffers& buffers,
                     float near_m = 0.05f);
 

@@ -48,6 +48,45 @@ TEST(Rasterizer, TiltedPlaneDepthIsPerspectiveCorrect) {
   EXPECT_GT(covered, kCamera.width * kCamera.height / 2);
 }
 
+// A floor much larger than the rig reaches behind the camera: its two triangles have corners on
+// both sides of the near plane. The part in front is drawn whole, with its colours, and nothing
+// behind the camera or nearer than the near plane.
+TEST(Rasterizer, TriangleReachingBehindTheCameraIsClippedNotDropped) {
+  // Camera looking down its z axis, 1.2 m above a floor y = 1.2 (image y points down).
+  TriangleMesh floor;
+  floor.positions = {{-30, 1.2f, -30}, {30, 1.2f, -30}, {30, 1.2f, 30}, {-30, 1.2f, 30}};
+  floor.colors = {{0, 0, 0}, {200, 0, 0}, {200, 200, 0}, {0, 200, 0}};
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}};
+  RenderBuffers buffers;
+  buffers.reset(kCamera, true);
+  rasterize_mesh(floor, kCamera, Rigid3d::Identity(), buffers);
+  int covered = 0;
+  for (int v = 0; v < kCamera.height; ++v) {
+    for (int u = 0; u < kCamera.width; ++u) {
+      const float y_ray = (v - kCamera.cy) / kCamera.fy;  // the ray (·, y_ray, 1) meets y = 1.2 at z = 1.2 / y_ray
+      const float z = buffers.depth(u, v);
+      if (y_ray <= 1.2f / 30) {  // above the horizon, or beyond the floor's far edge
+        EXPECT_TRUE(std::isinf(z)) << u << "," << v;
+        continue;
+      }
+      ++covered;
+      EXPECT_NEAR(z, 1.2f / y_ray, 1e-4f * z) << u << "," << v;
+      // Colour is linear over the floor: red from x, green from z (x, z in [-30, 30]).
+      const float x = (u - kCamera.cx) / kCamera.fx * z;
+      const Rgb8 c = buffers.color(u, v);
+      EXPECT_NEAR(c.r, 200 * (x + 30) / 60, 1.5) << u << "," << v;
+      EXPECT_NEAR(c.g, 200 * (z + 30) / 60, 1.5) << u << "," << v;
+    }
+  }
+  EXPECT_GT(covered, kCamera.width * kCamera.height / 3);
+  // A triangle wholly nearer than the near plane, or behind the camera, draws nothing.
+  RenderBuffers empty;
+  empty.reset(kCamera, false);
+  rasterize_mesh(square({0, 0, 0.02f}, {1, 0, 0}, {0, 1, 0}, 1, {}), kCamera, Rigid3d::Identity(), empty);
+  rasterize_mesh(square({0, 0, -2}, {1, 0, 0}, {0, 1, 0}, 5, {}), kCamera, Rigid3d::Identity(), empty);
+  for (float z : empty.depth.data) EXPECT_TRUE(std::isinf(z));
+}
+
 TEST(Rasterizer, NearerSurfaceWinsWhateverTheOrder) {
   const TriangleMesh far = square({0, 0, 3}, {1, 0, 0}, {0, 1, 0}, 10, {255, 0, 0});
   const TriangleMesh near = square({0, 0, 1.5f}, {1, 0, 0}, {0, 1, 0}, 0.2f, {0, 0, 255});
