@@ -12,6 +12,7 @@
 
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
+#include "zipfusion/io/image_io.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/io/rig.h"
 
@@ -82,6 +83,16 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       // The largest int: one frame past it would overflow.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames 2147483647",
        "--frames: \"2147483647\" reaches past the last frame of a capture with 1 frames"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames +0", "--frames: expected A:B with whole numbers, got \"+0\""},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames -0", "--frames: expected A:B with whole numbers, got \"-0\""},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames 0:99999999999",
+       "--frames: \"0:99999999999\" reaches past the last frame of a capture with 1 frames"},
+      // An infinite depth or σ would pass as "positive" and reach stats.json as null.
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-depth inf", "zipfusion: error: --max-depth: must be finite"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --bilateral-sigma-px inf", "zipfusion: error: --bilateral-sigma-px: must be positive and finite"},
+      // Live cameras' options on a capture would be ignored.
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-wait 1 --stall-timeout 5",
+       "zipfusion: error: --stall-timeout, --max-wait: only with --live"},
       // Usage errors that CLI11 finds: one line too, with the same prefix, exit 2.
       {"frobnicate", "zipfusion: error: unknown command \"frobnicate\" (commands: synth, info,"},
       {"", "zipfusion: error: A subcommand is required"},
@@ -297,6 +308,81 @@ TEST_F(Cli, EarlierMeshesThatWouldStayAreRefused) {
   }
   EXPECT_FALSE(fs::exists(out / "000000.obj"));
   EXPECT_EQ(fs::last_write_time(out / "000000.ply"), written_at);  // the refused runs wrote nothing
+}
+
+// Outputs never land among the capture's own files: meshes written into its ground truth would
+// replace the true ones (and every later eval of the capture would score 0 mm, 100 %), a rig
+// written there the true poses. A link does not hide where the output goes. Nothing is written.
+TEST_F(Cli, OutputsStayOutOfTheCapturesFolders) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  const fs::path truth_mesh = capture / "ground_truth" / "mesh" / "000000.ply";
+  const auto truth_written_at = fs::last_write_time(truth_mesh);
+  fs::create_directory_symlink(capture / "ground_truth", dir_ / "truth_link");
+  struct Case {
+    std::string args, expected;
+  };
+  const std::string reconstruct = "reconstruct " + capture.string() + " --threads 1 --out ";
+  const std::vector<Case> cases = {
+      {reconstruct + capture.string(), "--out: " + capture.string() + " is the folder of the capture " + capture.string()},
+      {reconstruct + (capture / "ground_truth" / "mesh").string(), " lies in the ground truth of the capture "},
+      {reconstruct + (dir_ / "truth_link" / "new").string(), " lies in the ground truth of the capture "},
+      {reconstruct + (capture / "cam1" / "depth").string(), " lies among the frames of camera cam1 of the capture "},
+      {"register " + capture.string() + " --out " + (capture / "ground_truth" / "rig.json").string(), " lies in the ground truth of the capture "},
+  };
+  for (const Case& c : cases) {
+    const CommandResult r = run(c.args);
+    EXPECT_EQ(r.exit_code, 2) << c.args;
+    EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
+  }
+  EXPECT_EQ(fs::last_write_time(truth_mesh), truth_written_at);
+  EXPECT_FALSE(fs::exists(capture / "000000.ply"));
+  EXPECT_FALSE(fs::exists(capture / "ground_truth" / "new"));
+  // A folder of its own inside the capture is not among its files.
+  EXPECT_EQ(run(reconstruct + (capture / "meshes").string()).exit_code, 0);
+}
+
+// The ground truth is optional: a ground_truth/rig.json that cannot be used is a warning for
+// reconstruct (its meshes as without it), "not used" in info, and an error only where it is needed
+// (eval) or asked for (info --strict).
+TEST_F(Cli, AnUnusableGroundTruthRigStopsOnlyWhatNeedsIt) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  write_file_atomic(capture / "ground_truth" / "rig.json", "garbage\n");
+  const std::string problem = (capture / "ground_truth" / "rig.json").string() + ": not valid JSON";
+  const CommandResult reconstructed = run("reconstruct " + capture.string() + " --threads 1 --out " + (dir_ / "out").string());
+  EXPECT_EQ(reconstructed.exit_code, 0) << reconstructed.err;
+  EXPECT_EQ(reconstructed.err.rfind("reconstruct: warning: " + problem, 0), 0u) << reconstructed.err;
+  EXPECT_NE(reconstructed.err.find("; the ground truth is not used"), std::string::npos) << reconstructed.err;
+  EXPECT_GT(read_mesh(dir_ / "out" / "000000.ply").triangle_count(), 1000u);
+  const CommandResult info = run("info " + capture.string());
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("ground truth not used: " + problem), std::string::npos) << info.out;
+  for (const std::string& args : {"info --strict " + capture.string(), "eval " + capture.string() + " " + (dir_ / "out").string()}) {
+    const CommandResult r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_EQ(r.err.rfind("zipfusion: error: " + problem, 0), 0u) << args << "\n" << r.err;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+  }
+}
+
+// A camera whose frames hold no depth has no depth range: "-" in info's table and null in its
+// JSON, not 0.00 m (a depth no camera measures).
+TEST_F(Cli, InfoGivesNoDepthRangeForACameraWithoutDepth) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  write_depth_png(capture / "cam1" / "depth" / "000000.png", DepthImage(160, 120, 0));
+  const CommandResult json_info = run("info --json " + capture.string());
+  ASSERT_EQ(json_info.exit_code, 0) << json_info.err;
+  const nlohmann::json j = nlohmann::json::parse(json_info.out);
+  EXPECT_TRUE(j["cameras"][1]["depth_m"].is_null()) << j["cameras"][1];
+  EXPECT_GT(j["cameras"][0]["depth_m"]["median"].get<double>(), 1.5);
+  const CommandResult table = run("info " + capture.string());
+  const size_t row = table.out.find("\ncam1 ", table.out.find("frames examined"));
+  ASSERT_NE(row, std::string::npos) << table.out;
+  const std::string line = table.out.substr(row + 1, table.out.find('\n', row + 1) - row - 1);
+  EXPECT_EQ(line.back(), '-') << line;
 }
 
 // "DIR/" and "DIR/." (as a shell completes a folder) name DIR: the capture is written there, with

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
 
 namespace zipfusion {
@@ -93,13 +94,24 @@ TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
   struct Case {
     std::string args, expected;
   };
-  const std::vector<Case> cases = {
+  std::vector<Case> cases = {
       {"eval " + no_truth.string() + " " + empty.string(),
        (no_truth / "ground_truth" / "rig.json").string() + ": missing: eval needs a capture with ground truth (synth writes one)"},
       {"eval " + capture.string() + " " + empty.string(), empty.string() + ": no reconstruction"},
       {"eval " + capture.string() + " " + (dir_ / "nowhere").string(), "nowhere: not a folder of reconstructions"},
       {"eval " + capture.string() + " " + empty.string() + " --min-range 3 --max-range 2", "--max-range: must be above --min-range"},
   };
+  // What is not a mesh is an error naming the file, not an empty reconstruction; nor is a frame
+  // with both formats read as either.
+  const fs::path renamed = dir_ / "renamed", both = dir_ / "both";
+  fs::create_directories(renamed);
+  fs::create_directories(both);
+  write_file_atomic(renamed / "000000.obj", "ply\nformat binary_little_endian 1.0\n");
+  write_obj(both / "000000.obj", TriangleMesh{});
+  write_ply(both / "000000.ply", TriangleMesh{});
+  cases.push_back({"eval " + capture.string() + " " + renamed.string(), (renamed / "000000.obj").string() + ": line 1: not an OBJ statement"});
+  cases.push_back({"eval " + capture.string() + " " + both.string(),
+                   (both / "000000.ply").string() + ", 000000.obj: two reconstructions of one frame; keep one"});
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args;

@@ -48,12 +48,16 @@ nlohmann::ordered_json number(double value) { return std::isfinite(value) ? nloh
 
 // The reconstruction of a frame: RECON_DIR/NNNNNN.ply, else .obj; empty when neither exists.
 fs::path reconstruction_path(const fs::path& dir, int frame) {
+  fs::path found;
   for (const char* extension : {".ply", ".obj"}) {
     const fs::path path = dir / frame_file_name(frame, extension);
     std::error_code ec;
-    if (fs::is_regular_file(path, ec)) return path;
+    if (!fs::is_regular_file(path, ec)) continue;
+    // Two runs' meshes of one frame (reconstruct refuses to write the second into the first's folder).
+    if (!found.empty()) throw InvalidInput(found.string() + ", " + path.filename().string() + ": two reconstructions of one frame; keep one");
+    found = path;
   }
-  return {};
+  return found;
 }
 
 // The per-frame values averaged over the frames with a reconstruction, each over those where it
@@ -105,6 +109,7 @@ void run_eval(EvalArgs& args) {
 
   const Capture capture = Capture::open(args.capture);
   const fs::path truth_dir = fs::path(args.capture) / "ground_truth";
+  if (!capture.ground_truth_rig_problem().empty()) throw InvalidInput(capture.ground_truth_rig_problem());
   if (!capture.ground_truth_rig()) {
     throw InvalidInput((truth_dir / "rig.json").string() + ": missing: eval needs a capture with ground truth (synth writes one)");
   }

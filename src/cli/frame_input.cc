@@ -64,12 +64,20 @@ std::vector<std::string> UnreadableFrames::report(const Rig& rig, const FrameSet
   return files;
 }
 
+Capture open_capture(const std::string& dir, const std::string& command) {
+  Capture capture = Capture::open(dir);
+  if (!capture.ground_truth_rig_problem().empty()) {
+    print_diagnostic(command + ": warning: " + capture.ground_truth_rig_problem() + "; the ground truth is not used");
+  }
+  return capture;
+}
+
 void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in) {
   if (!(args.seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = until Ctrl-C or the end of the frames)");
   if (!args.live) {
     if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
-    if (!args.devices.devices.empty() || !args.devices.replay.empty()) throw InvalidInput("--devices, --replay: only with --live");
-    in.capture.emplace(Capture::open(args.capture));
+    check_no_live_device_options(args.devices);
+    in.capture.emplace(open_capture(args.capture, command));
     in.rig = rig_path.empty() ? in.capture->rig() : use_calibration_from(*in.capture, rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,

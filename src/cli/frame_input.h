@@ -67,6 +67,10 @@ class UnreadableFrames {
   bool depth_decoded_ = false;
 };
 
+//! Capture::open for `command`, with a warning line ("COMMAND: warning: …; the ground truth is not
+//! used") where the capture's optional ground_truth/rig.json cannot be used.
+Capture open_capture(const std::string& dir, const std::string& command);
+
 //! Opens the capture or the cameras. `rig_path` (--rig): poses for the capture, or the
 //! calibration of live cameras; `register_mode` is checked against --live. Throws InvalidInput
 //! naming the option. A capture's source warns of each unreadable frame file as `command` and

@@ -2,6 +2,8 @@
 // --frames A:B for the CLI: frames A (inclusive) to B (exclusive); "A:" to the end, ":B" from 0,
 // "N" a single frame, empty all frames.
 
+#include <algorithm>
+#include <charconv>
 #include <string>
 
 #include "zipfusion/core/error.h"
@@ -14,16 +16,17 @@ struct FrameRange {
 };
 
 inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
+  // Digits only: std::stoi would also take " 1", "+1" and "-0".
   auto number = [&](const std::string& s, int fallback) {
     if (s.empty()) return fallback;
-    size_t used = 0;
-    int value = -1;
-    try {
-      value = std::stoi(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
+    int value = 0;
+    const auto [end, error] = std::from_chars(s.data(), s.data() + s.size(), value);
+    if (error == std::errc::result_out_of_range && std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      throw InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
     }
-    if (used != s.size() || value < 0) throw InvalidInput("--frames: expected A:B with whole numbers, got \"" + text + "\"");
+    if (error != std::errc() || end != s.data() + s.size() || s[0] == '-') {
+      throw InvalidInput("--frames: expected A:B with whole numbers, got \"" + text + "\"");
+    }
     return value;
   };
   auto past_the_end = [&] {

@@ -118,6 +118,7 @@ void run_info(const InfoArgs& args) {
     }
     out["ground_truth"] = {{"pose_error_max_deg", worst_deg}, {"pose_error_max_m", worst_m}, {"meshes", capture.has_ground_truth_meshes()}};
   }
+  if (!capture.ground_truth_rig_problem().empty()) out["ground_truth_problem"] = capture.ground_truth_rig_problem();
   out["cameras"] = nlohmann::json::array();
   for (int c = 0; c < cameras; ++c) {
     const CameraModel& cam = rig.cameras[c];
@@ -139,7 +140,9 @@ void run_info(const InfoArgs& args) {
         {"missing_color_frames", missing_color[c]},
         {"unreadable_frame_files", s.unreadable},
         {"valid_depth_fraction", s.frames_with_depth ? s.valid_fraction_sum / s.frames_with_depth : 0.0},
-        {"depth_m", {{"min", quantile(0)}, {"median", quantile(0.5)}, {"max", quantile(1)}}}};
+        // null where the frames examined hold no depth in range (not 0 m, a depth no camera measures)
+        {"depth_m", s.depth_samples.empty() ? nlohmann::ordered_json(nullptr)
+                                            : nlohmann::ordered_json{{"min", quantile(0)}, {"median", quantile(0.5)}, {"max", quantile(1)}}}};
     if (cam.color_intrinsics) j["color"] = {{"width", cam.color_intrinsics->width}, {"height", cam.color_intrinsics->height}, {"fx", cam.color_intrinsics->fx}};
     if (rig.volume) j["in_volume_fraction"] = s.frames_with_depth ? s.in_volume_fraction_sum / s.frames_with_depth : 0.0;
     out["cameras"].push_back(j);
@@ -161,6 +164,9 @@ void run_info(const InfoArgs& args) {
                         out["ground_truth"]["pose_error_max_deg"].get<double>(), out["ground_truth"]["pose_error_max_m"].get<double>() * 1000,
                         capture.has_ground_truth_meshes() ? "yes" : "no");
   }
+  if (out.contains("ground_truth_problem")) {
+    std::cout << "ground truth not used: " << out["ground_truth_problem"].get<std::string>() << "\n";
+  }
   std::cout << format("\n%-8s %-14s %-14s %-22s %-13s\n", "camera", "depth", "colour", "position (m)", "view az/el");
   for (int c = 0; c < cameras; ++c) {
     const auto& j = out["cameras"][c];
@@ -176,23 +182,26 @@ void run_info(const InfoArgs& args) {
   for (int c = 0; c < cameras; ++c) {
     const auto& j = out["cameras"][c];
     const std::string in_volume = j.contains("in_volume_fraction") ? format("%.1f", 100 * j["in_volume_fraction"].get<double>()) : "-";
-    std::cout << format("%-8s %8s %8s %9.1f %10s %8.2f/%5.2f/%5.2f\n", rig.cameras[c].name.c_str(),
-                        format("%d", j["frames_with_depth"].get<int>()).c_str(), format("%d", j["frames_with_color"].get<int>()).c_str(),
-                        100 * j["valid_depth_fraction"].get<double>(), in_volume.c_str(), j["depth_m"]["min"].get<double>(),
-                        j["depth_m"]["median"].get<double>(), j["depth_m"]["max"].get<double>());
+    const std::string depth_range = j["depth_m"].is_null() ? "-" : format("%8.2f/%5.2f/%5.2f", j["depth_m"]["min"].get<double>(),
+                                                                           j["depth_m"]["median"].get<double>(), j["depth_m"]["max"].get<double>());
+    std::cout << format("%-8s %8s %8s %9.1f %10s %20s\n", rig.cameras[c].name.c_str(), format("%d", j["frames_with_depth"].get<int>()).c_str(),
+                        format("%d", j["frames_with_color"].get<int>()).c_str(), 100 * j["valid_depth_fraction"].get<double>(),
+                        in_volume.c_str(), depth_range.c_str());
   }
   if (!capture.missing_frames().empty()) {
     std::cout << "\nmissing frame files: " << capture.missing_frames().size() << " (";
     for (int c = 0; c < cameras; ++c) {
       std::cout << (c ? ", " : "") << rig.cameras[c].name << " depth " << missing_depth[c] << " colour " << missing_color[c];
     }
-    std::cout << "); those cameras are skipped in those frames\n";
+    std::cout << "); reconstruct leaves a camera without its depth file out of that frame set, and gives one without its "
+                 "colour file grey there\n";
   }
   std::vector<std::string> unreadable;
   for (const CameraStats& s : stats) unreadable.insert(unreadable.end(), s.unreadable.begin(), s.unreadable.end());
   if (!unreadable.empty()) {
     std::sort(unreadable.begin(), unreadable.end());
-    std::cout << "\nunreadable frame files: " << unreadable.size() << " in the frames examined; reconstruct leaves those cameras out of those frame sets\n";
+    std::cout << "\nunreadable frame files: " << unreadable.size() << " in the frames examined; reconstruct leaves a camera whose "
+                 "depth file this is out of that frame set, and gives one whose colour file this is grey there\n";
     for (const std::string& file : unreadable) std::cout << "  " << file << "\n";
   }
 }

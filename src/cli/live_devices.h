@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/commands.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/live/kinect_camera.h"
 #include "zipfusion/live/live_camera.h"
@@ -52,6 +53,7 @@ inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
       ->check(CLI::IsMember({"auto", "mm", "registered", "raw"}))
       ->capture_default_str();
   cmd->add_option("--stall-timeout", args.kinect.stall_timeout_s, "A Kinect without a depth frame this long has been unplugged, seconds")
+      ->check(kFiniteNumber & CLI::Range(0.05, 3600.0))
       ->capture_default_str();
   cmd->add_option("--max-wait", args.max_wait_s,
                   "A camera's frame this late is left out of its frame set, seconds (default: 0.25 for --devices, the stall timeout "
@@ -68,6 +70,21 @@ inline std::vector<std::string> split_commas(const std::string& text) {
     start = end + 1;
   }
   return parts;
+}
+
+//! Throws InvalidInput naming the live-camera options given to a run that reads a capture (they
+//! would be ignored).
+inline void check_no_live_device_options(const LiveDeviceArgs& args) {
+  std::string given;
+  auto note = [&](bool set, const char* option) {
+    if (set) given += (given.empty() ? "" : ", ") + std::string(option);
+  };
+  note(!args.devices.empty(), "--devices");
+  note(!args.replay.empty(), "--replay");
+  note(args.depth_format != LiveDeviceArgs{}.depth_format, "--depth-format");
+  note(args.kinect.stall_timeout_s != KinectOptions{}.stall_timeout_s, "--stall-timeout");
+  note(args.max_wait_s != LiveDeviceArgs{}.max_wait_s, "--max-wait");
+  if (!given.empty()) throw InvalidInput(given + ": only with --live");
 }
 
 //! The selected cameras; throws InvalidInput naming the option.

@@ -48,7 +48,7 @@ void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extensi
   for (const fs::directory_entry& entry : fs::directory_iterator(out_dir, ec)) {
     const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
     if (frame < 0 || (entry.path().extension() == extension && frame >= range.begin && frame < range.end)) continue;
-    throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would read both); "
+    throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would measure both runs, or refuse a frame with both formats); "
                        "choose an empty --out or remove it");
   }
   if (ec) throw IoError(out_dir.string() + ": cannot list the output folder: " + ec.message());
@@ -63,6 +63,7 @@ void run_reconstruct(ReconstructArgs& args) {
   // The output folder is checked before the reconstruction is set up (--register once registers
   // the rig first, which takes seconds).
   const fs::path out_dir = output_folder(args.out);  // "out/." could not be removed on failure; a link's folder is made where it points
+  if (in.capture) in.capture->check_output_outside(out_dir, "--out");
   std::error_code ec;
   const bool out_dir_is_new = !fs::exists(out_dir, ec);
   if (!out_dir_is_new) check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);

@@ -43,7 +43,8 @@ void run_register(RegisterArgs& args) {
   if (args.max_frames < 1) throw InvalidInput("--max-frames: must be at least 1, got " + std::to_string(args.max_frames));
   args.options.validate();
   check_output_file(args.out);
-  Capture capture = Capture::open(args.capture);
+  Capture capture = open_capture(args.capture, "register");
+  capture.check_output_outside(args.out, "--out");
   const Rig start = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());

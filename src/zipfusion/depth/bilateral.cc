@@ -161,9 +161,9 @@ void filter_square(const Image<float>& depth_m, const BilateralKernel& kernel, I
 }  // namespace
 
 void BilateralOptions::validate() const {
-  if (!(spatial_sigma_px > 0)) throw InvalidInput("--bilateral-sigma-px: must be positive");
+  if (!(spatial_sigma_px > 0 && std::isfinite(spatial_sigma_px))) throw InvalidInput("--bilateral-sigma-px: must be positive and finite");
   if (radius_px < 1 || radius_px > 32) throw InvalidInput("--bilateral-radius: must be in [1, 32] pixels");
-  if (!(range_sigma_m > 0)) throw InvalidInput("--bilateral-range-sigma: must be positive");
+  if (!(range_sigma_m > 0 && std::isfinite(range_sigma_m))) throw InvalidInput("--bilateral-range-sigma: must be positive and finite");
 }
 
 BilateralKernel::BilateralKernel(const BilateralOptions& options) : radius(options.radius_px), separable(options.separable) {

@@ -11,8 +11,8 @@
 namespace zipfusion {
 
 void ForegroundOptions::validate() const {
-  if (!(min_depth_m >= 0)) throw InvalidInput("--min-depth: must be >= 0 metres");
-  if (!(max_depth_m > min_depth_m)) throw InvalidInput("--max-depth: must exceed --min-depth");
+  if (!(min_depth_m >= 0 && std::isfinite(min_depth_m))) throw InvalidInput("--min-depth: must be a finite depth >= 0 metres");
+  if (!(max_depth_m > min_depth_m && std::isfinite(max_depth_m))) throw InvalidInput("--max-depth: must be finite and exceed --min-depth");
 }
 
 namespace {

@@ -152,12 +152,45 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
 
   const fs::path truth_rig_path = dir / "ground_truth" / "rig.json";
   if (fs::exists(truth_rig_path, ec)) {
-    capture.ground_truth_rig_ = read_rig(truth_rig_path);
-    check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
+    try {
+      capture.ground_truth_rig_ = read_rig(truth_rig_path);
+      check_same_cameras(rig, *capture.ground_truth_rig_, truth_rig_path.string());
+    } catch (const std::runtime_error& e) {  // InvalidInput or IoError
+      // Only eval needs it (and info reports it): the frames stay usable without it.
+      if (options.strict) throw;
+      capture.ground_truth_rig_.reset();
+      capture.ground_truth_rig_problem_ = e.what();
+    }
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
   capture.depth_undistortion_ = depth_undistortion_maps(capture.rig_);
   return capture;
+}
+
+void Capture::check_output_outside(const fs::path& output, std::string_view option) const {
+  std::error_code ec;
+  auto resolved = [&](const fs::path& p) {
+    const fs::path canonical = fs::weakly_canonical(fs::absolute(p, ec), ec);
+    return ec ? fs::absolute(p).lexically_normal() : canonical;
+  };
+  auto within = [](const fs::path& path, const fs::path& folder) {
+    auto p = path.begin();
+    for (auto f = folder.begin(); f != folder.end(); ++f, ++p) {
+      if (f->empty() && std::next(f) == folder.end()) break;  // a trailing separator
+      if (p == path.end() || *p != *f) return false;
+    }
+    return true;
+  };
+  const fs::path out = resolved(output), root = resolved(dir_);
+  auto refuse = [&](const std::string& where) {
+    throw InvalidInput(std::string(option) + ": " + output.string() + " " + where + " of the capture " + dir_.string() +
+                       "; write it outside the capture's folders");
+  };
+  if (out == root) refuse("is the folder");
+  if (within(out, resolved(dir_ / "ground_truth"))) refuse("lies in the ground truth");
+  for (const CameraModel& camera : rig_.cameras) {
+    if (within(out, resolved(dir_ / camera.name))) refuse("lies among the frames of camera " + camera.name);
+  }
 }
 
 void Capture::use_calibration(const Rig& calibrated) {

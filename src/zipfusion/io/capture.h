@@ -16,6 +16,7 @@
 #include <initializer_list>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "zipfusion/core/image.h"
@@ -69,6 +70,10 @@ class Capture {
 
   //! ground_truth/rig.json when present (validated against the main rig: same cameras).
   const std::optional<Rig>& ground_truth_rig() const { return ground_truth_rig_; }
+  //! Why a ground_truth/rig.json that is there is not used (it cannot be read, or its cameras are
+  //! not rig.json's): its error, "FILE: FIELD: problem"; empty when it is used or absent. The
+  //! ground truth is optional, so this does not stop opening the capture unless opened strict.
+  const std::string& ground_truth_rig_problem() const { return ground_truth_rig_problem_; }
   bool has_ground_truth_meshes() const { return has_ground_truth_meshes_; }
   std::filesystem::path ground_truth_mesh_path(int frame) const;
 
@@ -88,6 +93,12 @@ class Capture {
   CameraFrame load_camera_depth(int frame, int camera) const;
   FrameSet load_frame(int frame) const;
 
+  //! Throws InvalidInput ("OPTION: …") when `output` would be written among the capture's own
+  //! files: the capture folder itself, or its ground truth or a camera's folder or anything in
+  //! them (meshes written there would replace the true ones, or mix with the frames). Links are
+  //! resolved first. The capture's rig.json itself may be replaced (a refined rig written back).
+  void check_output_outside(const std::filesystem::path& output, std::string_view option) const;
+
   //! Reads the frames through another calibration of the same cameras (a `--rig`): its depth
   //! distortion undistorts the depth from now on, and rig() returns it. Throws InvalidInput when
   //! its cameras, image sizes or depth unit differ from rig.json's.
@@ -98,6 +109,7 @@ class Capture {
   Rig rig_;
   CaptureOpenOptions options_;
   std::optional<Rig> ground_truth_rig_;
+  std::string ground_truth_rig_problem_;
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };

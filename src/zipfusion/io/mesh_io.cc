@@ -623,6 +623,22 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, cons
   write_file_atomic(path, encode_ply(mesh, layout));
 }
 
+namespace {
+
+// The statements of the OBJ format (Wavefront's specification, polygonal and free-form). Any other
+// first word means the file is not OBJ (a PLY named .obj, binary bytes): reading it as a mesh
+// without faces would pass garbage on as an empty reconstruction.
+bool is_obj_statement(std::string_view keyword) {
+  static constexpr std::string_view kStatements[] = {"v",     "vt",   "vn",    "vp",    "f",     "l",     "p",        "g",        "o",
+                                                     "s",     "mg",   "mtllib", "usemtl", "cstype", "deg",  "bmat",     "step",     "curv",
+                                                     "curv2", "surf", "parm",  "trim",  "hole",  "scrv",  "sp",       "end",      "con",
+                                                     "bevel", "lod",  "maplib", "usemap", "ctech", "stech", "c_interp", "d_interp", "shadow_obj",
+                                                     "trace_obj"};
+  return std::find(std::begin(kStatements), std::end(kStatements), keyword) != std::end(kStatements);
+}
+
+}  // namespace
+
 TriangleMesh parse_obj(std::string_view text, const std::string& source) {
   TriangleMesh mesh;
   bool all_colored = true;
@@ -635,6 +651,7 @@ TriangleMesh parse_obj(std::string_view text, const std::string& source) {
     const std::vector<std::string_view> tokens = split_whitespace(line);
     if (tokens.empty()) continue;
     const std::string where = "line " + std::to_string(lines.line_number());
+    if (!is_obj_statement(tokens[0])) fail(source, where + ": not an OBJ statement: " + quote_token(tokens[0]) + " (not an OBJ file?)");
     if (tokens[0] == "v") {
       if (tokens.size() < 4) fail(source, where + ": a vertex needs x y z");
       if (mesh.positions.size() >= static_cast<size_t>(std::numeric_limits<int>::max())) {

@@ -221,6 +221,16 @@ TEST(MeshIo, ObjErrorsNameFileAndLine) {
                  {"bad.obj", "line 4"});
 }
 
+// Bytes that are not OBJ are an error, not an empty mesh (a PLY or binary data named .obj); an
+// empty file is an empty mesh, as write_obj writes one.
+TEST(MeshIo, ObjRefusesWhatIsNotObj) {
+  expect_invalid([] { parse_obj("ply\nformat binary_little_endian 1.0\nelement vertex 3\n", "renamed.obj"); },
+                 {"renamed.obj", "line 1", "not an OBJ statement", "ply"});
+  expect_invalid([] { parse_obj(std::string_view("v 0 0 0\n\x7f\x01\x02garbage\n", 18), "binary.obj"); }, {"binary.obj", "line 2"});
+  EXPECT_EQ(parse_obj("", "empty.obj").triangle_count(), 0u);
+  EXPECT_EQ(parse_obj("# only a comment\n\n", "comment.obj").vertex_count(), 0u);
+}
+
 TEST(MeshIo, AsciiPlyWithQuadExtraElementsAndProperties) {
   const std::string text =
       "ply\r\n"
