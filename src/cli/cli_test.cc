@@ -87,6 +87,9 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames -0", "--frames: expected A:B with whole numbers, got \"-0\""},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames 0:99999999999",
        "--frames: \"0:99999999999\" reaches past the last frame of a capture with 1 frames"},
+      {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 1 --resolution 100000x100000",
+       "zipfusion: error: --resolution: must be within 32x24 .. 4096x4096"},
+      {"synth --out " + (dir_ / "x").string() + " --checkerboard --resolution 32x24", "zipfusion: error: --resolution: checkerboard views need at least 64x48"},
       // An infinite depth or σ would pass as "positive" and reach stats.json as null.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-depth inf", "zipfusion: error: --max-depth: must be finite"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --bilateral-sigma-px inf", "zipfusion: error: --bilateral-sigma-px: must be positive and finite"},
@@ -383,6 +386,52 @@ TEST_F(Cli, InfoGivesNoDepthRangeForACameraWithoutDepth) {
   ASSERT_NE(row, std::string::npos) << table.out;
   const std::string line = table.out.substr(row + 1, table.out.find('\n', row + 1) - row - 1);
   EXPECT_EQ(line.back(), '-') << line;
+}
+
+// A synth that fails leaves nothing: not the parent folders it would have written into, nor a
+// capture volume no viewer can quantise (a subject reaching 1e38 m); and --color-noise given
+// with --noise none is used, not silently zeroed.
+TEST_F(Cli, SynthLeavesNothingWhenItFailsAndTakesTheColourNoiseGiven) {
+  const fs::path subjects = dir_ / "subjects";
+  fs::create_directories(subjects);
+  write_file_atomic(subjects / "far0.obj", "v 0 0 1\nv 0.5 0 1\nv 0 0 1.5\nv 3e38 0 0\nf 1 2 3\nf 1 2 4\n");
+  struct Case {
+    std::string args, expected;
+    int exit_code;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"synth --out " + (dir_ / "a" / "b" / "cap").string() + " --frames 1 --resolution 64x48 --subject " + (subjects / "none%d.obj").string(),
+            "none0.obj: no such file", 3},
+           {"synth --out " + (dir_ / "a" / "b" / "cap").string() + " --frames 1 --resolution 64x48 --subject " + (subjects / "far%d.obj").string(),
+            "far0.obj: a vertex lies 3e+38 m from the origin; a subject must lie within 999 m of it on each axis", 2}}) {
+    const CommandResult r = run(c.args);
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.args;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir_ / "a")) << c.args;
+  }
+  const std::string plain = "synth --frames 1 --cameras 1 --resolution 64x48 --noise none --color-format png --out ";
+  ASSERT_EQ(run(plain + (dir_ / "quiet").string()).exit_code, 0);
+  ASSERT_EQ(run(plain + (dir_ / "noisy").string() + " --color-noise 20").exit_code, 0);
+  EXPECT_NE(read_file_bytes(dir_ / "quiet" / "cam0" / "color" / "000000.png"), read_file_bytes(dir_ / "noisy" / "cam0" / "color" / "000000.png"));
+}
+
+// Frame files the capture lacks are one warning line saying what becomes of their cameras: left
+// out without depth, grey without colour (cameras_used counts the camera that is only grey).
+TEST_F(Cli, MissingFrameFilesAreAWarning) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  fs::remove(capture / "cam1" / "color" / "000000.jpg");
+  fs::remove(capture / "cam0" / "depth" / "000001.png");
+  const CommandResult r = run("reconstruct " + capture.string() + " --threads 1 --out " + (dir_ / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "reconstruct: warning: 2 frame files missing (cam0 depth 1 colour 0, cam1 depth 0 colour 1): a camera without its depth "
+                   "file is left out of that frame set, one without its colour file is grey there\n");
+  const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(dir_ / "out" / "stats.json"));
+  EXPECT_EQ(stats["frames"][0]["cameras_used"], 2);
+  EXPECT_EQ(stats["frames"][1]["cameras_used"], 1);
+  // Only the frames asked for count.
+  const CommandResult second = run("reconstruct " + capture.string() + " --threads 1 --frames 1 --out " + (dir_ / "out1").string());
+  EXPECT_NE(second.err.find("1 frame files missing (cam0 depth 1 colour 0)"), std::string::npos) << second.err;
 }
 
 // "DIR/" and "DIR/." (as a shell completes a folder) name DIR: the capture is written there, with

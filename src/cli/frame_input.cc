@@ -64,6 +64,27 @@ std::vector<std::string> UnreadableFrames::report(const Rig& rig, const FrameSet
   return files;
 }
 
+// One line for the frame files of `range` that the capture lacks (known when it is opened, as the
+// unreadable ones are not), so that a camera left out, or grey, is not a surprise.
+void warn_missing_frames(const Capture& capture, const FrameRange& range, const std::string& command) {
+  const Rig& rig = capture.rig();
+  std::vector<int> depth(rig.cameras.size(), 0), color(rig.cameras.size(), 0);
+  int total = 0;
+  for (const MissingFrame& m : capture.missing_frames()) {
+    if (m.frame < range.begin || m.frame >= range.end) continue;
+    ++(m.color ? color : depth)[m.camera];
+    ++total;
+  }
+  if (total == 0) return;
+  std::string counts;
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    if (depth[c] + color[c] == 0) continue;
+    counts += (counts.empty() ? "" : ", ") + rig.cameras[c].name + " depth " + std::to_string(depth[c]) + " colour " + std::to_string(color[c]);
+  }
+  print_diagnostic(command + ": warning: " + std::to_string(total) + " frame files missing (" + counts +
+                   "): a camera without its depth file is left out of that frame set, one without its colour file is grey there");
+}
+
 Capture open_capture(const std::string& dir, const std::string& command) {
   Capture capture = Capture::open(dir);
   if (!capture.ground_truth_rig_problem().empty()) {
@@ -80,6 +101,7 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.capture.emplace(open_capture(args.capture, command));
     in.rig = rig_path.empty() ? in.capture->rig() : use_calibration_from(*in.capture, rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
+    warn_missing_frames(*in.capture, in.range, command);
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
                  report = std::make_shared<UnreadableFrames>(command)](double& decode_ms) {
       std::optional<FrameSet> set = source(decode_ms);

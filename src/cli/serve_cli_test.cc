@@ -131,6 +131,53 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   EXPECT_GT(std::stoi(served[3]), 100) << text;
 }
 
+// Ctrl-C stops serve at once, also while it waits 20 s for a slow capture's next frame; the
+// capture named with a trailing slash keeps its name in the viewer's hello.
+TEST_F(ServeCli, CtrlCStopsAtOnceBetweenSlowFrames) {
+  namespace net = boost::asio;
+  namespace websocket = boost::beast::websocket;
+  const std::string capture = (dir_ / "slow").string();
+  ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 2 --fps 0.05 --resolution 64x48").exit_code, 0);
+  const auto out = dir_ / "serve.out", pid_file = dir_ / "serve.pid";
+  const std::string command = std::string(ZF_BINARY) + " serve " + capture + "/ --loop --port 0 --threads 1 > " + out.string() +
+                              " 2>&1 < /dev/null & echo $! > " + pid_file.string();
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  auto read_text = [](const std::filesystem::path& path) {
+    std::ifstream in(path);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  std::smatch url;
+  std::string text;
+  for (int i = 0; i < 200 && !std::regex_search(text, url, std::regex("serving http://127\\.0\\.0\\.1:(\\d+)/")); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    text = read_text(out);
+  }
+  ASSERT_FALSE(url.empty()) << text;
+  {
+    net::io_context io;
+    websocket::stream<net::ip::tcp::socket> ws(io);
+    ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(std::stoi(url[1]))});
+    ws.handshake("127.0.0.1", "/stream");
+    boost::beast::flat_buffer buffer;
+    ws.read(buffer);
+    const nlohmann::json hello = nlohmann::json::parse(boost::beast::buffers_to_string(buffer.data()));
+    EXPECT_EQ(hello.at("capture"), "slow") << hello;
+    ws.next_layer().close();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // into the 20 s wait for frame 1
+  const auto interrupted_at = std::chrono::steady_clock::now();
+  ASSERT_EQ(std::system(("kill -INT $(cat " + pid_file.string() + ")").c_str()), 0);
+  for (int i = 0; i < 200 && text.find("served ") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    text = read_text(out);
+  }
+  const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - interrupted_at).count();
+  EXPECT_NE(text.find("served "), std::string::npos) << text;
+  EXPECT_LT(stop_s, 2.0) << text;  // it waited for the next frame, 19 s on
+}
+
 // serve --live streams live cameras: here a fakenect dump replayed as a camera, at its recorded
 // pace (as the device delivered it), once or looped for the time asked.
 TEST_F(ServeCli, StreamsLiveCameras) {
@@ -171,6 +218,7 @@ TEST_F(ServeCli, BadOptionsGiveOneLineAndNonZeroExit) {
       {"serve " + capture + " --web " + (dir_ / "nowhere").string() + " --port 0", "index.html"},
       {"serve " + capture + " --lod 9 --port 0", "--lod: must be in [0, 3]"},
       {"serve " + capture + " --position-bits 0 --port 0", "--position-bits: must be in [1, 30]"},
+      {"serve " + capture + " --token '' --port 0", "--token: must not be empty"},
       {"serve " + (dir_ / "missing").string() + " --port 0", "missing"},
   };
   for (const Case& c : cases) {

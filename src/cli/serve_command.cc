@@ -2,6 +2,7 @@
 // frame rate, reconstructed, compressed with Draco and streamed over one HTTP port to the viewer
 // in the browser (web/, served from the same port).
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/stopwatch.h"
 #include "zipfusion/io/draco_codec.h"
+#include "zipfusion/io/file_util.h"
 #include "zipfusion/stream/stream_server.h"
 
 namespace zipfusion::cli {
@@ -64,7 +66,7 @@ std::string hello_json(const Rig& rig, const ServeArgs& args, const Quantization
   }
   nlohmann::ordered_json hello = {{"type", "hello"},
                                   {"format", "zipfusion.stream/1"},
-                                  {"capture", args.input.live ? std::string("live") : fs::path(args.input.capture).filename().string()},
+                                  {"capture", args.input.live ? std::string("live") : folder_path(args.input.capture).filename().string()},  // "cap/" too
                                   {"fps", rig.fps},
                                   {"lod", args.reconstruction.options.depth_level},
                                   {"position_bits", args.draco.position_bits},
@@ -103,7 +105,11 @@ class PacedSource {
       unreadable_.report(capture_.rig(), set);
       if (loop_) cache_.push_back(set);
     }
-    std::this_thread::sleep_until(due);
+    // Waits in short steps: Ctrl-C must stop a capture of a few frames per second (or fewer) at once.
+    for (Clock::time_point now = Clock::now(); now < due; now = Clock::now()) {
+      if (stop_requested()) return std::nullopt;
+      std::this_thread::sleep_until(std::min(due, now + std::chrono::milliseconds(50)));
+    }
     ++sequence_;
     set.capture_time_ms = epoch_ms();  // now is when a camera would have delivered it
     return set;
@@ -139,7 +145,9 @@ void run_serve(ServeArgs& args) {
   StreamServer server(args.server, hello_json(reconstruction.rig(), args, volume_box));
 
   install_stop_on_signal();
-  std::string url = "http://" + args.server.bind_address + ":" + std::to_string(server.port()) + "/";
+  const std::string& host = args.server.bind_address;
+  // An IPv6 address goes in brackets (RFC 3986), or its colons would read as the port's.
+  std::string url = "http://" + (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + std::to_string(server.port()) + "/";
   if (!args.server.token.empty()) url += "?token=" + args.server.token;
   std::cout << "serving " << url << " (" << in.rig.cameras.size() << " cameras, " << in.rig.fps << " fps, lod "
             << r.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;
@@ -217,12 +225,16 @@ void add_serve_command(CLI::App& app) {
   cmd->add_option("--port", args->server.port, "HTTP port for the viewer and the stream (0: any free port)")->capture_default_str();
   cmd->add_option("--bind", args->server.bind_address, "Address to listen on (127.0.0.1: this machine only; 0.0.0.0: every network)")
       ->capture_default_str();
-  cmd->add_option("--token", args->server.token, "Refuse clients that do not give this token (open the page as /?token=...)");
+  CLI::Option* token = cmd->add_option("--token", args->server.token, "Refuse clients that do not give this token (open the page as /?token=...)");
   cmd->add_option("--web", args->web, "Folder of the viewer's files (default: web/ beside the executable)");
   cmd->add_option("--position-bits", args->draco.position_bits, "Draco: bits per coordinate over the capture volume")->capture_default_str();
   cmd->add_option("--compression-level", args->draco.compression_level, "Draco: 0 (fastest) to 10 (smallest)")->capture_default_str();
   add_reconstruction_options(cmd, args->reconstruction);
-  cmd->callback([args] { run_serve(*args); });
+  cmd->callback([args, token] {
+    // An empty token would let every client in: a script's unset variable, not a choice.
+    if (token->count() > 0 && args->server.token.empty()) throw InvalidInput("--token: must not be empty (leave it out to let any client in)");
+    run_serve(*args);
+  });
 }
 
 }  // namespace zipfusion::cli

@@ -18,6 +18,7 @@ struct SynthArgs {
   std::string miscalibrate;
   std::string resolution = "640x480";
   std::string color_format = "jpg";
+  bool color_noise_given = false;  // --color-noise on the command line: --noise none leaves it
   std::string noise = "kinect";
   SynthOptions options;
   bool wand = false, checkerboard = false;
@@ -58,7 +59,7 @@ void run_synth(SynthArgs& args) {
   options.color_extension = "." + args.color_format;
   if (args.noise == "none") {
     options.noise = KinectNoiseOptions::none();
-    options.color_noise_sigma = 0;
+    if (!args.color_noise_given) options.color_noise_sigma = 0;  // an explicit --color-noise still counts
   }
   if (args.no_shadows) options.noise.projector_shadows = false;
   if (args.no_edge_dropout) options.noise.edge_dropout = false;
@@ -79,7 +80,11 @@ void run_synth(SynthArgs& args) {
   }
   if (args.out.empty()) throw InvalidInput("--out: required (or --fakenect DIR)");
   if (args.checkerboard) {
-    CheckerboardOptions board{.views = args.views, .square_m = args.square_m, .seed = options.seed};
+    options.validate();  // --resolution, --threads, --color-noise as for a capture
+    if (options.depth_width < 64 || options.depth_height < 48) {
+      throw InvalidInput("--resolution: checkerboard views need at least 64x48, got " + args.resolution);
+    }
+    CheckerboardOptions board{.views = args.views, .square_m = args.square_m, .seed = options.seed, .num_threads = options.num_threads};
     char tail = 0;
     if (std::sscanf(args.board.c_str(), "%dx%d%c", &board.inner_columns, &board.inner_rows, &tail) != 2) {
       throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + args.board + "\"");
@@ -116,7 +121,7 @@ void add_synth_command(CLI::App& app) {
   auto args = std::make_shared<SynthArgs>();
   SynthOptions& o = args->options;
   CLI::App* cmd = app.add_subcommand("synth", "Write a synthetic multi-Kinect capture of a moving person, with ground truth");
-  cmd->add_option("--out", args->out, "Output capture folder (must not exist)");
+  cmd->add_option("--out", args->out, "Output capture folder (new, or an empty folder)");
   cmd->add_option("--fakenect", args->fakenect,
                   "Write a fakenect dump (INDEX.txt, raw 11-bit depth PGM, RGB PPM, as fakenect-record writes them) of one camera of "
                   "the scene instead, with the truth in DIR/truth; replay it with: fakenect DIR zipfusion record --devices all ...");
@@ -155,15 +160,17 @@ void add_synth_command(CLI::App& app) {
   cmd->add_flag("--no-holes", args->no_holes, "No small random holes");
   cmd->add_flag("--no-axial-noise", args->no_axial_noise, "No axial noise sigma(z)");
   cmd->add_flag("--no-quantization", args->no_quantization, "No 1/8-px disparity quantisation");
-  cmd->add_option("--color-noise", o.color_noise_sigma, "Colour noise sigma, 8-bit levels")->capture_default_str();
+  CLI::Option* color_noise =
+      cmd->add_option("--color-noise", o.color_noise_sigma, "Colour noise sigma, 8-bit levels (0 with --noise none unless given)")->capture_default_str();
   cmd->add_option("--color-format", args->color_format, "Colour files: jpg or png")
       ->check(CLI::IsMember({"jpg", "png"}))
       ->capture_default_str();
   cmd->add_option("--jpeg-quality", o.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
   cmd->add_flag("--no-floor", args->no_floor, "Do not render the floor");
   add_threads_option(cmd, o.num_threads);
-  cmd->callback([args, cmd] {
+  cmd->callback([args, cmd, color_noise] {
     args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
+    args->color_noise_given = color_noise->count() > 0;
     run_synth(*args);
   });
 }

@@ -1,10 +1,12 @@
 #include "zipfusion/io/file_util.h"
 
+#include <algorithm>
 #include <fstream>
 #include <random>
 #include <string>
 #include <system_error>
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -133,9 +135,13 @@ void check_new_folder(const std::filesystem::path& asked_for, std::string_view o
   if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
     throw InvalidInput(name + ": already exists and is not empty (choose a new " + std::string(option) + ")");
   }
-  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
-  fs::create_directories(parent, ec);
-  if (!fs::is_directory(parent, ec)) throw IoError(parent.string() + ": cannot create the output's parent folder");
+  // The parent is made by the writing, not here: a run that fails before it (a subject file
+  // missing) leaves no empty folders behind. Here only nothing may stand in its way.
+  fs::path existing = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  while (!fs::exists(existing, ec) && existing.has_parent_path() && existing != existing.parent_path()) existing = existing.parent_path();
+  if (fs::exists(existing, ec) && !fs::is_directory(existing, ec)) {
+    throw IoError(existing.string() + ": is a file, so the output's parent folder cannot be made there");
+  }
 }
 
 namespace {
@@ -145,6 +151,22 @@ std::string in_folder_asked_for(std::string text, const std::filesystem::path& s
   const std::string from = staging.string(), to = dir.string();
   for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);
   return text;
+}
+
+// A killed run (SIGKILL, a power cut) leaves its staging folder, ".NAME.partial-PID", and no
+// later run has its PID: such folders whose process is gone are removed before a new one is made.
+void remove_abandoned_staging(const std::filesystem::path& parent, const std::string& prefix) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (const fs::directory_entry& entry : fs::directory_iterator(parent, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string pid_text = name.substr(prefix.size());
+    if (!std::all_of(pid_text.begin(), pid_text.end(), [](char c) { return c >= '0' && c <= '9'; }) || pid_text.size() > 9) continue;
+    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
+    if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    fs::remove_all(entry.path(), ec);
+  }
 }
 
 }  // namespace
@@ -160,23 +182,36 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
   staging_name += std::to_string(::getpid());
   const fs::path staging = parent / staging_name;
   std::error_code ec;
+  remove_abandoned_staging(parent, staging_name.substr(0, staging_name.size() - std::to_string(::getpid()).size()));
   fs::remove_all(staging, ec);
+  // The folders this call makes above the staging folder, removed again if it fails.
+  fs::path first_made;
+  for (fs::path p = parent; !p.empty() && !fs::exists(p, ec); p = p.has_parent_path() && p != p.parent_path() ? p.parent_path() : fs::path()) {
+    first_made = p;
+  }
+  auto clean_up = [&] {
+    fs::remove_all(staging, ec);
+    if (first_made.empty()) return;
+    for (fs::path p = parent;; p = p.parent_path()) {
+      if (!fs::remove(p, ec) || p == first_made) break;  // remove() takes only an empty folder
+    }
+  };
   try {
     fs::create_directories(staging);
     fill(staging);
     if (fs::exists(dir, ec)) fs::remove(dir);  // an empty folder: check_new_folder allowed it
     fs::rename(staging, dir);
   } catch (const fs::filesystem_error& e) {
-    fs::remove_all(staging, ec);
+    clean_up();
     throw IoError(in_folder_asked_for(e.path1().string(), staging, dir) + ": cannot write (" + e.code().message() + ")");
   } catch (const IoError& e) {
-    fs::remove_all(staging, ec);
+    clean_up();
     throw IoError(in_folder_asked_for(e.what(), staging, dir));
   } catch (const InvalidInput& e) {
-    fs::remove_all(staging, ec);
+    clean_up();
     throw InvalidInput(in_folder_asked_for(e.what(), staging, dir));
   } catch (...) {
-    fs::remove_all(staging, ec);
+    clean_up();
     throw;
   }
 }

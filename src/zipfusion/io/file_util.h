@@ -35,13 +35,16 @@ std::filesystem::path folder_path(const std::filesystem::path& dir);
 std::filesystem::path output_folder(const std::filesystem::path& dir);
 
 //! Throws InvalidInput when `dir` exists and is not an empty folder (`option` names the command
-//! line option that chose it), and IoError when its parent folder cannot be created. A link is
-//! followed: what is checked (and written by write_folder_atomic) is the folder it points to.
+//! line option that chose it), and IoError when a file stands where its parent folders would be
+//! made. Nothing is created (write_folder_atomic makes the parents). A link is followed: what is
+//! checked (and written by write_folder_atomic) is the folder it points to.
 void check_new_folder(const std::filesystem::path& dir, std::string_view option);
 
-//! Writes a whole folder atomically: `fill` writes into a hidden staging folder beside `dir`,
-//! which is then renamed to `dir` (which check_new_folder accepted). On any error the staging
-//! folder is removed and the error rethrown (a filesystem error as IoError naming the path).
+//! Writes a whole folder atomically: `fill` writes into a hidden staging folder beside `dir`
+//! (".NAME.partial-PID", its parent folders made as needed), which is then renamed to `dir` (which
+//! check_new_folder accepted). On any error the staging folder and the parents this call made are
+//! removed and the error rethrown (a filesystem error as IoError naming the path). Staging folders
+//! of earlier runs whose process is gone (killed) are removed first.
 void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill);
 
 }  // namespace zipfusion

@@ -100,7 +100,6 @@ class Fields {
   std::string path_;
 };
 
-constexpr double kMostTranslationM = 1000;
 
 void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
   const double fold = distortion_fold_share(k);
@@ -158,8 +157,8 @@ Rigid3d parse_rigid(const Fields& parent, const std::string& key) {
     parent.fail(field, "is not a rigid transform (rotation must be orthonormal with det +1, last row 0 0 0 1)");
   }
   // Metres: a rig is room-sized; a kilometre is far past any, and 1e300 would overflow the maths.
-  if (m.topRightCorner<3, 1>().cwiseAbs().maxCoeff() > kMostTranslationM) {
-    parent.fail(field, "translation must be within " + std::to_string(static_cast<int>(kMostTranslationM)) + " m of the origin on each axis");
+  if (m.topRightCorner<3, 1>().cwiseAbs().maxCoeff() > kMostWorldM) {
+    parent.fail(field, "translation must be within " + std::to_string(static_cast<int>(kMostWorldM)) + " m of the origin on each axis");
   }
   // Exactly orthonormal input is kept bit for bit (exact round trips); rounded input is repaired.
   const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
@@ -235,6 +234,9 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
     const std::vector<double> hi = top.numbers(volume.required("max"), "volume.max", 3);
     Box3d box{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
     if (!(box.min.array() < box.max.array()).all()) top.fail("volume", "min must be below max on every axis");
+    if (std::max(box.min.cwiseAbs().maxCoeff(), box.max.cwiseAbs().maxCoeff()) > kMostWorldM) {
+      top.fail("volume", "must lie within " + std::to_string(static_cast<int>(kMostWorldM)) + " m of the origin on each axis");
+    }
     rig.volume = box;
   }
 

@@ -17,6 +17,9 @@ namespace zipfusion {
 inline constexpr const char* kRigFormat = "zipfusion.rig/1";
 //! Frame files are numbered with six digits (000000.png to 999999.png).
 inline constexpr int kMostFrames = 1000000;
+//! Camera positions and the capture volume lie within this many metres of the origin on each
+//! axis (a rig is a room, not a map; beyond, metres were probably millimetres).
+inline constexpr double kMostWorldM = 1000;
 
 struct CameraModel {
   std::string name;                           // also the camera's folder in the capture

@@ -145,6 +145,7 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       {"numeric trust", [](json& j) { j["poses_trusted"] = 1; }, "poses_trusted: must be true or false"},
       {"inverted volume", [](json& j) { j["volume"]["max"][2] = -5; }, "volume: min must be below max"},
       {"short volume", [](json& j) { j["volume"]["min"] = {1, 2}; }, "volume.min: must be an array of 3 numbers"},
+      {"volume beyond the world", [](json& j) { j["volume"]["max"][0] = 3.3e38; }, "volume: must lie within 1000 m of the origin on each axis"},
       {"no cameras", [](json& j) { j["cameras"] = json::array(); }, "cameras: must be a non-empty array"},
       {"missing name", [](json& j) { j["cameras"][1].erase("name"); }, "cameras[1].name: missing required key"},
       {"duplicate name", [](json& j) { j["cameras"][1]["name"] = "left"; }, "cameras[1].name: \"left\" is used by two cameras"},

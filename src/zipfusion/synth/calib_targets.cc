@@ -299,7 +299,7 @@ std::vector<CheckerboardView> render_checkerboard_views(const CheckerboardOption
         }
         linear(u, v) = Eigen::Vector3f::Constant(sum / (n * n));
       }
-    });
+    }, o.num_threads);
     views.push_back({to_color(linear, o.color_noise_sigma, o.seed * 7919 + views.size()), cam_from_board});
   }
   return views;

@@ -70,6 +70,7 @@ struct CheckerboardOptions {
   double color_noise_sigma = 2.0; // 8-bit levels
   int supersampling = 3;          // samples per pixel and axis (anti-aliasing: sub-pixel corners)
   std::uint64_t seed = 1;
+  int num_threads = 0;            // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming the field
 };

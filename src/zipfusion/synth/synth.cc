@@ -1,6 +1,7 @@
 #include "zipfusion/synth/synth.h"
 
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <random>
 #include <system_error>
@@ -177,6 +178,15 @@ TriangleMesh subject_mesh(const SynthOptions& options, int frame) {
   const fs::path file = format_frame_pattern(parse_frame_pattern(options.subject_pattern), frame);
   TriangleMesh mesh = read_mesh(file);
   if (mesh.triangles.empty()) throw InvalidInput(file.string() + ": subject mesh has no triangles");
+  // The capture volume grows around the subject, and rig.json holds it within kMostWorldM.
+  for (const Eigen::Vector3f& p : mesh.positions) {
+    if (p.cwiseAbs().maxCoeff() > kMostWorldM - 1) {
+      char reach[32];
+      std::snprintf(reach, sizeof reach, "%.4g", p.cwiseAbs().maxCoeff());
+      throw InvalidInput(file.string() + ": a vertex lies " + reach + " m from the origin; a subject must lie within " +
+                         std::to_string(static_cast<int>(kMostWorldM - 1)) + " m of it on each axis (metres, not millimetres?)");
+    }
+  }
   if (!mesh.has_colors()) mesh.colors.assign(mesh.positions.size(), Rgb8{170, 170, 170});
   return mesh;
 }
