@@ -26,6 +26,12 @@ struct RegisterArgs {
   std::string frames;
   std::string rig;
   int max_frames = 16;
+  // A camera whose final correspondences fix its pose only to more than this (the formal σ along
+  // its least fixed direction, RegistrationResult::least_fixed_m) leaves the rig untrusted. The
+  // formal σ is smaller than the error, 2.5-7 times in these runs (16 frames unless said): samba-4cam
+  // 0.3 mm (0.9-1.6 mm off the truth); synth 4 cameras 640x480, 8 frames, 0.4-0.6 mm (1.1-1.4 mm
+  // off); 3 cameras 320x240 1.7-2.8 mm (8.5-10.2 mm off), on 3 frames 3.7-5.6 mm (32-39 mm off).
+  double trust_within_m = 0.0015;
   RegistrationOptions options;
 };
 
@@ -85,14 +91,23 @@ void run_register(RegisterArgs& args) {
                        "): the starting poses are too far off, the depth too small for --coarsest-level " + std::to_string(args.options.coarsest_level) +
                        ", or the frames have no overlapping depth; nothing written");
   }
+  // Joined is not yet placed: correspondences that leave a direction free (only the floor: the
+  // slide along it; a few frames at a coarse resolution) leave the pose wherever the steps
+  // stopped. Such a rig is written untrusted too.
+  std::string loosely_fixed;
+  for (size_t c = 0; c < start.cameras.size(); ++c) {
+    if (result.joined_to_gauge[c] && static_cast<int>(c) != result.gauge && !(result.least_fixed_m[c] <= args.trust_within_m)) {
+      loosely_fixed += (loosely_fixed.empty() ? "" : ", ") + start.cameras[c].name;
+    }
+  }
   Rig refined = start;
   for (size_t c = 0; c < refined.cameras.size(); ++c) refined.cameras[c].world_from_depth = result.world_from_depth[c];
-  refined.poses_trusted = unmatched == 0;
+  refined.poses_trusted = unmatched == 0 && loosely_fixed.empty();
   write_rig(args.out, refined);
 
   std::printf("registered %zu cameras on %zu frames (%d..%d) in %.0f ms, %d iterations%s\n", start.cameras.size(), frames.size(), frames.front(),
               frames.back(), ms, result.iterations, result.converged ? ", converged" : "");
-  std::printf("%-10s %12s %12s %14s %14s %10s\n", "camera", "change deg", "change mm", "rms before mm", "rms after mm", "matches");
+  std::printf("%-10s %12s %12s %14s %14s %10s %10s\n", "camera", "change deg", "change mm", "rms before mm", "rms after mm", "matches", "fixed mm");
   // "-": no correspondences to measure at those poses.
   const auto rms_mm = [](double rms_m, int count) {
     char text[32];
@@ -106,13 +121,21 @@ void run_register(RegisterArgs& args) {
                        : !result.has_depth[c]              ? "  (no depth in these frames, or none in the volume: keeps its pose)"
                        : !result.joined_to_gauge[c]        ? "  (not joined to the held camera through any overlap: keeps its pose)"
                                                            : "";
-    std::printf("%-10s %12.3f %12.1f %14s %14s %10d%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
+    // "-": the gauge, or a camera not registered (it keeps its pose).
+    char fixed[32] = "-";
+    if (static_cast<int>(c) != result.gauge && result.joined_to_gauge[c]) std::snprintf(fixed, sizeof fixed, "%.1f", result.least_fixed_m[c] * 1000);
+    std::printf("%-10s %12.3f %12.1f %14s %14s %10d %10s%s\n", start.cameras[c].name.c_str(), rotation_angle_deg(change), moved_mm,
                 rms_mm(result.rmse_before_m[c], result.correspondences_before[c]).c_str(),
-                rms_mm(result.rmse_after_m[c], result.correspondences_after[c]).c_str(), result.correspondences_after[c], note);
+                rms_mm(result.rmse_after_m[c], result.correspondences_after[c]).c_str(), result.correspondences_after[c], fixed, note);
   }
   if (unmatched > 0) {
     std::printf("%d camera(s) not joined to %s: %s is written without \"poses_trusted\", so reconstruct refines it again\n", unmatched, gauge.c_str(),
                 args.out.c_str());
+  }
+  if (!loosely_fixed.empty()) {
+    std::printf("%s fixed to more than %.1f mm (--trust-within): the correspondences leave a direction of the pose loose (only the "
+                "floor, too few frames (--max-frames), coarse depth); %s is written without \"poses_trusted\", so reconstruct refines it again\n",
+                loosely_fixed.c_str(), args.trust_within_m * 1000, args.out.c_str());
   }
   if (const auto& truth = capture.ground_truth_rig()) {
     const std::vector<Rigid3d> true_poses = world_from_depth_poses(*truth);
@@ -138,6 +161,11 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--out", args->out, "Refined rig.json to write")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B to draw from (A included, B excluded; default all)");
   cmd->add_option("--max-frames", args->max_frames, "Frames used, spread evenly over --frames")->capture_default_str();
+  cmd->add_option("--trust-within", args->trust_within_m,
+                  "The rig is written as trusted only if every camera's correspondences fix its pose to this, metres (the formal "
+                  "standard deviation along its least fixed direction; a rotation counts at a 2 m lever arm)")
+      ->check(kFiniteNumber & CLI::Range(1e-6, 1.0))
+      ->capture_default_str();
   cmd->add_option("--rig", args->rig, "Start from the calibration (poses, intrinsics, volume) of this rig.json instead of the capture's");
   cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth sampled every 2^L pixels of a 640x480 Kinect (every 2^L*f/580 of a camera of focal length f)")->capture_default_str();
   cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution; so is 1 for 320x240)")->capture_default_str();

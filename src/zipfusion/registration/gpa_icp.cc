@@ -1,6 +1,7 @@
 #include "zipfusion/registration/gpa_icp.h"
 
 #include <algorithm>
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -278,6 +279,11 @@ struct Accumulated {
   std::vector<double> sum_sq;  // per camera
   std::vector<int> count;
   std::vector<char> pair_matched;  // [a · cameras + b], a < b: the pair had enough correspondences over the frames
+  // With the normal equations, over the matched pairs' correspondences in them: Σ w·r² and their
+  // support (each 1, the floor's 1/F), whose ratio over 1e-6 is the mean (r/σ)², the a posteriori
+  // variance factor.
+  double weighted_sq = 0;
+  double used_support = 0;
 };
 
 // One pair's correspondences over all frames, summed: its two cameras' blocks of the normal
@@ -288,6 +294,8 @@ struct PairSums {
   double sum_sq = 0;
   int count = 0;
   double support = 0;
+  double weighted_sq = 0;   // Σ w·r² of the correspondences in h
+  double used_support = 0;  // their support
 };
 
 // All pairs' correspondences of all frames at the current poses; with `system`, adds them to the
@@ -325,6 +333,8 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
           const Eigen::Vector3d r = res.r.cast<double>();
           sums.h.noalias() += res.weight * j.topRows(rows).transpose() * j.topRows(rows);
           sums.g.noalias() += res.weight * j.topRows(rows).transpose() * r.head(rows);
+          sums.weighted_sq += res.weight * r.head(rows).squaredNorm();
+          sums.used_support += res.support;
         }
       }
     }
@@ -339,6 +349,8 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
       acc.count[a] += sums.count;
       acc.count[b] += sums.count;
       if (h == nullptr) continue;
+      acc.weighted_sq += sums.weighted_sq;
+      acc.used_support += sums.used_support;
       const int ia = 6 * a, ib = 6 * b;
       h->block<6, 6>(ia, ia) += sums.h.block<6, 6>(0, 0);
       h->block<6, 6>(ib, ib) += sums.h.block<6, 6>(6, 6);
@@ -490,6 +502,31 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   if (restored) after = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, nullptr, nullptr, false);
   per_camera(after, result.rmse_after_m, result.correspondences_after);
   result.world_from_depth = poses.world_from_depth;
+
+  // How well the final correspondences fix each camera: the marginal covariance of its pose. The
+  // weights are 1e-6/σ² (σ in metres, the sensor model's), so H / 1e-6 is the information in
+  // m⁻², and the covariance σ0² · 1e-6 · H⁻¹, with σ0² the mean (r/σ)² of the residuals (the a
+  // posteriori variance factor: depth quieter or noisier than the model says fixes the poses
+  // better or worse). The damping only keeps a direction nothing fixes finite.
+  result.least_fixed_m.assign(cameras, 0);
+  if (!free_cameras.empty()) {
+    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);
+    const Accumulated final_sums = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, &h, &g, true);
+    const double variance_factor = final_sums.used_support > 0 ? final_sums.weighted_sq / (1e-6 * final_sums.used_support) : 1.0;
+    Eigen::MatrixXd hf = h(free_rows, free_rows);
+    hf.diagonal().array() += 1e-12 * std::max(1.0, hf.diagonal().maxCoeff());
+    const Eigen::MatrixXd covariance = variance_factor * 1e-6 * hf.ldlt().solve(Eigen::MatrixXd::Identity(hf.rows(), hf.cols()));
+    for (size_t k = 0; k < free_cameras.size(); ++k) {
+      const Eigen::Index at = 6 * static_cast<Eigen::Index>(k);
+      Eigen::Matrix<double, 6, 6> block = covariance.block<6, 6>(at, at);
+      block.topLeftCorner<3, 3>() *= kLeverArmM * kLeverArmM;  // radians as metres at the lever arm
+      block.topRightCorner<3, 3>() *= kLeverArmM;
+      block.bottomLeftCorner<3, 3>() *= kLeverArmM;
+      const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(block, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+      result.least_fixed_m[free_cameras[k]] = std::sqrt(std::max(largest, 0.0));
+    }
+  }
   return result;
 }
 

@@ -63,7 +63,7 @@ struct RegistrationOptions {
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
   int num_threads = 0;             // 0 = all hardware threads
 
-  void validate() const;  // throws InvalidInput naming `zipfusion register`'s option (without --) or, where it has none, the field
+  void validate() const;  // throws InvalidInput naming `zipfusion register`'s option (--trim) or, where it has none, the field
 };
 
 struct RegistrationResult {
@@ -79,6 +79,13 @@ struct RegistrationResult {
   // places it against the gauge (two groups that overlap only among themselves are not one rig):
   // it keeps its starting pose.
   std::vector<char> joined_to_gauge;
+  // Per camera: how far its pose could slide along the direction its final correspondences fix
+  // least, the formal standard deviation there (metres; a rotation counts times a 2 m lever arm),
+  // from the normal equations at the refined poses with every other camera free but the gauge,
+  // scaled by the residuals' mean (r/σ)² (quieter depth than the noise model fixes them better).
+  // A camera tied only by the floor (one plane: nothing fixes its slide along it) has metres or
+  // more; one that several surfaces hold, micrometres. 0 for the gauge.
+  std::vector<double> least_fixed_m;
   int iterations = 0;                      // Gauss-Newton steps taken over all levels
   bool converged = false;                  // the finest level's last step moved less than converged_rad
 };

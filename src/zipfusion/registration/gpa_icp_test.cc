@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <numbers>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/rasterizer.h"
 #include "zipfusion/synth/synth.h"
 
 namespace zipfusion {
@@ -156,6 +158,35 @@ TEST(RegisterRig, TwoNoiseFreeCamerasRecoverAKnownOffset) {
   EXPECT_LT(after.deg, 0.1);
   EXPECT_TRUE(result.world_from_depth[0].isApprox(ring.start.cameras[0].world_from_depth)) << "camera 0 is the gauge";
   EXPECT_LT(result.rmse_after_m[1], result.rmse_before_m[1]);
+}
+
+// A camera that shares only the floor with the gauge is joined but not placed: little fixes its
+// slide along the floor or its turn about the vertical, and least_fixed_m says so; where the two
+// cameras share the person too, it is a hundredth of that.
+TEST(RegisterRig, TheFloorAloneLeavesACameraLooselyFixed) {
+  const RegistrationOptions options;
+  SyntheticRing ring = make_ring(6, 2, 1.0, 0.03, false, options, 2);
+  const RegistrationResult with_person = register_rig(ring.start, ring.depth, options);
+  EXPECT_LT(with_person.least_fixed_m[1], 0.001);
+  EXPECT_EQ(with_person.least_fixed_m[0], 0);  // the gauge
+  for (FrameSet& set : ring.frames) {
+    for (size_t c = 0; c < set.cameras.size(); ++c) {
+      const Intrinsics& k = ring.truth.cameras[c].depth_intrinsics;
+      RenderBuffers floor;
+      floor.reset(k, false);
+      rasterize_floor(k, ring.truth.cameras[c].world_from_depth.inverse(), floor, 3.0);
+      for (size_t i = 0; i < floor.depth.data.size(); ++i) {
+        const float z = floor.depth.data[i];
+        set.cameras[c].depth.data[i] = std::isfinite(z) ? static_cast<unsigned short>(std::lround(z * 1000)) : 0;
+      }
+    }
+  }
+  const RegistrationResult floor_only = register_rig(ring.start, depth_of(ring, options), options);
+  ASSERT_TRUE(floor_only.joined_to_gauge[1]);
+  // 5.4 against 0.04 mm here: noise-free depth scales both down (the residuals' (r/σ)²), and the
+  // floor's far edges still hold a little; past register's --trust-within of 1.5 mm either way.
+  EXPECT_GT(floor_only.least_fixed_m[1], 100 * with_person.least_fixed_m[1]);
+  EXPECT_GT(floor_only.least_fixed_m[1], 0.003);
 }
 
 TEST(RegisterRig, SixNoiseFreeCamerasConvergeFromTwoDegreesFiveCentimetres) {
