@@ -25,34 +25,34 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "register)")
       ->check(CLI::IsMember({"auto", "background", "once", "off"}))
       ->capture_default_str();
-  cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements")->capture_default_str();
-  cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together")
+  cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements, at least 1")->capture_default_str();
+  cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together, in [1, 64]")
       ->capture_default_str();
   cmd->add_option("--lod", o.depth_level,
                   "Level of detail: reconstruct from every 2^LOD-th depth pixel, each the mean of its surface around it (1: a quarter of "
-                  "the triangles)")
+                  "the triangles), in [0, 3]")
       ->capture_default_str();
-  cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres")->capture_default_str();
-  cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres")->capture_default_str();
+  cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres (>= 0)")->capture_default_str();
+  cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres (finite, above --min-depth)")->capture_default_str();
   cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
   cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m,
-                  "SDC threshold: largest depth difference inside a triangle, metres, for a focal length of 580 px (a Kinect at "
+                  "SDC threshold: largest depth difference inside a triangle, metres in (0, 1), for a focal length of 580 px (a Kinect at "
                   "640x480); a camera with a shorter one f (at --lod, the subsampled one) takes it times 580/f")
       ->capture_default_str();
   cmd->add_option("--max-depth-jump-growth", o.sdc.growth_depth_m,
                   "SDC threshold: beyond this depth, metres, it grows with the square of depth, as a Kinect's depth step does "
-                  "(0: constant)")
+                  "(0: constant; else in [0.1, 20])")
       ->capture_default_str();
-  cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels")->capture_default_str();
-  cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels")->capture_default_str();
-  cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres")->capture_default_str();
-  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres")
+  cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels (positive)")->capture_default_str();
+  cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels, in [1, 32]")->capture_default_str();
+  cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres (positive)")->capture_default_str();
+  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres in (0, 0.5)")
       ->capture_default_str();
-  cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L")->capture_default_str();
-  cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r")->capture_default_str();
-  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres")
+  cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L, L in [0, 4]")->capture_default_str();
+  cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r, beta in (0, 1]")->capture_default_str();
+  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres in (0, 0.5)")
       ->capture_default_str();
-  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres")->capture_default_str();
+  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres in (0, 0.5)")->capture_default_str();
   cmd->add_option("--seam-smoothing", o.zipper.seam_smoothing_px,
                   "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels, in [0, 4], halved at each --lod level (0: as "
                   "measured; -1: auto, 2 without the filter, 1 with it)")
@@ -66,14 +66,14 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "border (border: more frontally), or auto (smoothness without the filter, border with it)")
       ->check(CLI::IsMember({"auto", "border", "smoothness"}))
       ->capture_default_str();
-  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Border ownership: holes up to 2*this+1 pixels wide are not borders")
+  cmd->add_option("--hole-closing", o.zipper.hole_closing_px, "Border ownership: holes up to 2*this+1 pixels wide are not borders, this in [0, 32]")
       ->capture_default_str();
-  cmd->add_option("--smoothness-window", o.zipper.smoothness_window_px, "Smoothness ownership: compared over windows this wide, pixels")
+  cmd->add_option("--smoothness-window", o.zipper.smoothness_window_px, "Smoothness ownership: compared over windows this wide, pixels in [1, 256]")
       ->capture_default_str();
   cmd->add_option("--smoothness-exponent", o.zipper.smoothness_exponent,
-                  "Smoothness ownership: exponent of the area ratio, how much a smoother surface outweighs a mesh's border")
+                  "Smoothness ownership: exponent of the area ratio, how much a smoother surface outweighs a mesh's border, in (0, 128]")
       ->capture_default_str();
-  cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered")
+  cmd->add_option("--min-overlap", o.zipper.min_overlap_share, "Share of a mesh within d_r of another for the pair to be zippered, in [0, 1)")
       ->capture_default_str();
   add_threads_option(cmd, o.num_threads);
 }

@@ -167,12 +167,12 @@ void add_register_command(CLI::App& app) {
       ->check(kFiniteNumber & CLI::Range(1e-6, 1.0))
       ->capture_default_str();
   cmd->add_option("--rig", args->rig, "Start from the calibration (poses, intrinsics, volume) of this rig.json instead of the capture's");
-  cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth sampled every 2^L pixels of a 640x480 Kinect (every 2^L*f/580 of a camera of focal length f)")->capture_default_str();
-  cmd->add_option("--finest-level", o.finest_level, "Last level (0 = full resolution; so is 1 for 320x240)")->capture_default_str();
-  cmd->add_option("--iterations", o.iterations_per_level, "Iterations per level")->capture_default_str();
+  cmd->add_option("--coarsest-level", o.coarsest_level, "First level: depth sampled every 2^L pixels of a 640x480 Kinect (every 2^L*f/580 of a camera of focal length f), L in [0, 5]")->capture_default_str();
+  cmd->add_option("--finest-level", o.finest_level, "Last level, in [0, --coarsest-level] (0 = full resolution; so is 1 for 320x240)")->capture_default_str();
+  cmd->add_option("--iterations", o.iterations_per_level, "Iterations per level, in [1, 100]")->capture_default_str();
   cmd->add_option("--start-distance", o.start_distance_m, "Correspondence distance at the first iteration, metres")->capture_default_str();
   cmd->add_option("--end-distance", o.end_distance_m, "Correspondence distance at the last iteration, metres")->capture_default_str();
-  cmd->add_option("--trim", o.trim_fraction, "Share of each pair's worst correspondences dropped")->capture_default_str();
+  cmd->add_option("--trim", o.trim_fraction, "Share of each pair's worst correspondences dropped, in [0, 1)")->capture_default_str();
   cmd->add_option("--below-volume", o.below_volume_m, "Depth this far below the capture volume (the floor) is used too, metres")
       ->capture_default_str();
   cmd->add_option("--max-pair-view-angle", o.max_pair_view_angle_deg,
@@ -180,7 +180,7 @@ void add_register_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--fit-radius", o.fit_radius_px,
                   "Half-width of the window each point and normal are fitted over at the finest level, pixels: wider averages more noise, narrower "
-                  "bends curved surfaces less (1 for low-noise depth at 320x240)")
+                  "bends curved surfaces less (1 for low-noise depth at 320x240); in [1, 16]")
       ->capture_default_str();
   cmd->add_option("--min-noise-cos", o.min_noise_cos, "The noise along a pair's normal is taken as seen at a cosine of at least this")
       ->capture_default_str();
