@@ -90,6 +90,10 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 1 --resolution 100000x100000",
        "zipfusion: error: --resolution: must be within 32x24 .. 4096x4096"},
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --resolution 32x24", "zipfusion: error: --resolution: checkerboard views need at least 64x48"},
+      // Another mode's options would be ignored.
+      {"synth --out " + (dir_ / "x").string() + " --views 3 --square 0.03", "zipfusion: error: --views, --square: only with --checkerboard"},
+      {"synth --out " + (dir_ / "x").string() + " --checkerboard --frames 5", "zipfusion: error: --frames: only with a capture (not with --checkerboard)"},
+      {"synth --out " + (dir_ / "x").string() + " --wand --color-format jpg", "zipfusion: error: --color-format: a wand capture's colour is always PNG"},
       // An infinite depth or σ would pass as "positive" and reach stats.json as null.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-depth inf", "zipfusion: error: --max-depth: must be finite"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --bilateral-sigma-px inf", "zipfusion: error: --bilateral-sigma-px: must be positive and finite"},

@@ -169,6 +169,26 @@ void add_synth_command(CLI::App& app) {
   cmd->add_flag("--no-floor", args->no_floor, "Do not render the floor");
   add_threads_option(cmd, o.num_threads);
   cmd->callback([args, cmd, color_noise] {
+    // An option of another mode would be ignored: refused, naming the mode it belongs to.
+    auto only_with = [&](std::initializer_list<const char*> options, bool mode_chosen, const std::string& mode) {
+      std::string given;
+      for (const char* option : options) {
+        if (cmd->count(option) > 0) given += (given.empty() ? "" : ", ") + std::string(option);
+      }
+      if (!given.empty() && !mode_chosen) throw InvalidInput(given + ": only with " + mode);
+    };
+    only_with({"--views", "--board", "--square"}, args->checkerboard, "--checkerboard");
+    only_with({"--led-distance", "--led-jitter"}, args->wand, "--wand");
+    only_with({"--camera", "--truncate"}, !args->fakenect.empty(), "--fakenect");
+    if (args->checkerboard) {
+      // Checkerboard views are one camera's images: the capture's options have no meaning there.
+      only_with({"--frames", "--fps", "--cameras", "--radius", "--height", "--target-height", "--subject", "--miscalibrate", "--noise",
+                 "--color-format", "--jpeg-quality", "--no-floor"},
+                false, "a capture (not with --checkerboard)");
+    }
+    if (args->wand && cmd->count("--color-format") > 0 && args->color_format != "png") {
+      throw InvalidInput("--color-format: a wand capture's colour is always PNG");
+    }
     args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
     args->color_noise_given = color_noise->count() > 0;
     run_synth(*args);
