@@ -29,6 +29,26 @@ class ServeCli : public CliTest {};
 // serve's summary: frame sets made, dropped to keep up, and not made as no viewer was ready.
 const std::regex kServedLine("served (\\d+) frame sets \\((\\d+) dropped by the pipeline to keep up, (\\d+) not made");
 
+// What a serve started in the background has printed so far.
+std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The port of a serve started in the background once it prints where it serves (0 after 10 s
+// without), and what it printed by then.
+std::pair<int, std::string> wait_for_serving(const std::filesystem::path& out) {
+  std::smatch url;
+  std::string text;
+  for (int i = 0; i < 200 && !std::regex_search(text, url, std::regex("serving http://127\\.0\\.0\\.1:(\\d+)/")); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    text = read_text(out);
+  }
+  return {url.empty() ? 0 : std::stoi(url[1]), text};
+}
+
 TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 6 --cameras 2").exit_code, 0);
@@ -60,22 +80,11 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   const auto out = dir_ / "serve.out";
   const std::string command = std::string(ZF_BINARY) + " serve " + capture + " --loop --seconds 5 --port 0 > " + out.string() + " 2>&1 < /dev/null &";
   ASSERT_EQ(std::system(command.c_str()), 0);
-  auto serve_output = [&] {
-    std::ifstream in(out);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  };
-  std::smatch url;
-  std::string text;
-  for (int i = 0; i < 200 && !std::regex_search(text, url, std::regex("serving http://127\\.0\\.0\\.1:(\\d+)/")); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    text = serve_output();
-  }
-  ASSERT_FALSE(url.empty()) << text;
+  auto [port, text] = wait_for_serving(out);
+  ASSERT_NE(port, 0) << text;
   net::io_context io;
   websocket::stream<net::ip::tcp::socket> ws(io);
-  ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(std::stoi(url[1]))});
+  ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
   ws.handshake("127.0.0.1", "/stream");
   auto send = [&](const std::string& command_text) {
     ws.text(true);
@@ -120,7 +129,7 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   EXPECT_GE(largest_step, 2) << "the header's sequence must count the frame sets not made";
   for (int i = 0; i < 200 && text.find("served ") == std::string::npos; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    text = serve_output();
+    text = read_text(out);
   }
   std::smatch served;
   ASSERT_TRUE(std::regex_search(text, served, kServedLine)) << text;
@@ -142,23 +151,12 @@ TEST_F(ServeCli, CtrlCStopsAtOnceBetweenSlowFrames) {
   const std::string command = std::string(ZF_BINARY) + " serve " + capture + "/ --loop --port 0 --threads 1 > " + out.string() +
                               " 2>&1 < /dev/null & echo $! > " + pid_file.string();
   ASSERT_EQ(std::system(command.c_str()), 0);
-  auto read_text = [](const std::filesystem::path& path) {
-    std::ifstream in(path);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  };
-  std::smatch url;
-  std::string text;
-  for (int i = 0; i < 200 && !std::regex_search(text, url, std::regex("serving http://127\\.0\\.0\\.1:(\\d+)/")); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    text = read_text(out);
-  }
-  ASSERT_FALSE(url.empty()) << text;
+  auto [port, text] = wait_for_serving(out);
+  ASSERT_NE(port, 0) << text;
   {
     net::io_context io;
     websocket::stream<net::ip::tcp::socket> ws(io);
-    ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(std::stoi(url[1]))});
+    ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
     ws.handshake("127.0.0.1", "/stream");
     boost::beast::flat_buffer buffer;
     ws.read(buffer);
