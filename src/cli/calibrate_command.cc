@@ -11,8 +11,8 @@
 #include <string_view>
 #include <nlohmann/json.hpp>
 
-#include "cli/frame_input.h"
 #include "cli/commands.h"
+#include "cli/frame_input.h"
 #include "cli/frame_range.h"
 #include "cli/rig_poses.h"
 #include "zipfusion/calib/depth_scale.h"

@@ -336,7 +336,9 @@ TEST_F(Cli, OutputsStayOutOfTheCapturesFolders) {
       {reconstruct + (dir_ / "truth_link" / "new").string(), " lies in the ground truth of the capture "},
       {reconstruct + (capture / "cam1" / "depth").string(), " lies among the frames of camera cam1 of the capture "},
       {"register " + capture.string() + " --out " + (capture / "ground_truth" / "rig.json").string(), " lies in the ground truth of the capture "},
+      {"register " + capture.string() + " --out " + (capture / "notes.txt").string(), "notes.txt is a file of the capture "},
   };
+  write_file_atomic(capture / "notes.txt", "the capture's own\n");
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
     EXPECT_EQ(r.exit_code, 2) << c.args;
@@ -344,6 +346,7 @@ TEST_F(Cli, OutputsStayOutOfTheCapturesFolders) {
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
   }
   EXPECT_EQ(fs::last_write_time(truth_mesh), truth_written_at);
+  EXPECT_EQ(read_file_bytes(capture / "notes.txt").size(), 18u);
   EXPECT_FALSE(fs::exists(capture / "000000.ply"));
   EXPECT_FALSE(fs::exists(capture / "ground_truth" / "new"));
   // A folder of its own inside the capture is not among its files.

@@ -64,6 +64,8 @@ std::vector<std::string> UnreadableFrames::report(const Rig& rig, const FrameSet
   return files;
 }
 
+namespace {
+
 // One line for the frame files of `range` that the capture lacks (known when it is opened, as the
 // unreadable ones are not), so that a camera left out, or grey, is not a surprise.
 void warn_missing_frames(const Capture& capture, const FrameRange& range, const std::string& command) {
@@ -84,6 +86,8 @@ void warn_missing_frames(const Capture& capture, const FrameRange& range, const 
   print_diagnostic(command + ": warning: " + std::to_string(total) + " frame files missing (" + counts +
                    "): a camera without its depth file is left out of that frame set, one without its colour file is grey there");
 }
+
+}  // namespace
 
 Capture open_capture(const std::string& dir, const std::string& command) {
   Capture capture = Capture::open(dir);

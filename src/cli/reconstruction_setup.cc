@@ -126,7 +126,9 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
     for (int i = 0; i < count; ++i) {
       depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
     }
-    const RegistrationResult refined = register_rig(rig_, depth, args.background.registration);
+    RegistrationOptions registration = args.background.registration;
+    registration.measure_fixed = false;  // the poses are used, not judged
+    const RegistrationResult refined = register_rig(rig_, depth, registration);
     for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
     pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
   }

@@ -28,10 +28,11 @@ struct RegisterArgs {
   int max_frames = 16;
   // A camera whose final correspondences fix its pose only to more than this (the formal σ along
   // its least fixed direction, RegistrationResult::least_fixed_m) leaves the rig untrusted. The
-  // formal σ is smaller than the error, 2.5-7 times in these runs (16 frames unless said): samba-4cam
-  // 0.3 mm (0.9-1.6 mm off the truth); synth 4 cameras 640x480, 8 frames, 0.4-0.6 mm (1.1-1.4 mm
-  // off); 3 cameras 320x240 1.7-2.8 mm (8.5-10.2 mm off), on 3 frames 3.7-5.6 mm (32-39 mm off).
-  double trust_within_m = 0.0015;
+  // formal σ is smaller than the error, 1.1-5 times in these runs (16 frames unless said):
+  // samba-4cam 0.3-0.5 mm (0.5-1.1 mm off the truth); synth 4 cameras 640x480, 8 frames,
+  // 0.7-1.0 mm (1.1-1.4 mm off); 3 cameras 320x240 2.8-4.5 mm (8.5-10.2 mm off), on 3 frames
+  // 6.2-8.8 mm (32-39 mm off).
+  double trust_within_m = 0.002;
   RegistrationOptions options;
 };
 
@@ -133,7 +134,7 @@ void run_register(RegisterArgs& args) {
                 args.out.c_str());
   }
   if (!loosely_fixed.empty()) {
-    std::printf("%s fixed to more than %.1f mm (--trust-within): the correspondences leave a direction of the pose loose (only the "
+    std::printf("%s fixed to more than %.3g mm (--trust-within): the correspondences leave a direction of the pose loose (only the "
                 "floor, too few frames (--max-frames), coarse depth); %s is written without \"poses_trusted\", so reconstruct refines it again\n",
                 loosely_fixed.c_str(), args.trust_within_m * 1000, args.out.c_str());
   }

@@ -151,6 +151,13 @@ TEST_F(ServeCli, CtrlCStopsAtOnceBetweenSlowFrames) {
   const std::string command = std::string(ZF_BINARY) + " serve " + capture + "/ --loop --port 0 --threads 1 > " + out.string() +
                               " 2>&1 < /dev/null & echo $! > " + pid_file.string();
   ASSERT_EQ(std::system(command.c_str()), 0);
+  // However the test ends, the server it started does not outlive it (--loop never ends alone).
+  struct KillOnExit {
+    std::filesystem::path pid_file;
+    ~KillOnExit() {
+      if (std::system(("kill -9 $(cat " + pid_file.string() + ") 2> /dev/null").c_str()) != 0) return;  // already gone: stopped as asked
+    }
+  } kill_on_exit{pid_file};
   auto [port, text] = wait_for_serving(out);
   ASSERT_NE(port, 0) << text;
   {

@@ -85,6 +85,7 @@ void run_synth(SynthArgs& args) {
       throw InvalidInput("--resolution: checkerboard views need at least 64x48, got " + args.resolution);
     }
     CheckerboardOptions board{.views = args.views, .square_m = args.square_m, .seed = options.seed, .num_threads = options.num_threads};
+    if (args.color_noise_given) board.color_noise_sigma = options.color_noise_sigma;  // its own default otherwise
     char tail = 0;
     if (std::sscanf(args.board.c_str(), "%dx%d%c", &board.inner_columns, &board.inner_rows, &tail) != 2) {
       throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + args.board + "\"");
@@ -104,6 +105,7 @@ void run_synth(SynthArgs& args) {
   }
   if (args.wand) {
     args.wand_options.seed = options.seed;
+    if (args.color_noise_given) args.wand_options.color_noise_sigma = options.color_noise_sigma;
     const SynthResult result = write_wand_capture(args.out, options, args.wand_options,
                                                   [](int done, int total) { show_progress("synth", done, total); });
     std::cout << "wrote " << args.out << ": wand capture, " << result.rig.cameras.size() << " cameras x " << args.wand_options.frames
@@ -177,17 +179,21 @@ void add_synth_command(CLI::App& app) {
       }
       if (!given.empty() && !mode_chosen) throw InvalidInput(given + ": only with " + mode);
     };
+    if (args->wand + args->checkerboard + !args->fakenect.empty() > 1) throw InvalidInput("--wand, --checkerboard, --fakenect: choose one");
     only_with({"--views", "--board", "--square"}, args->checkerboard, "--checkerboard");
     only_with({"--led-distance", "--led-jitter"}, args->wand, "--wand");
     only_with({"--camera", "--truncate"}, !args->fakenect.empty(), "--fakenect");
     if (args->checkerboard) {
       // Checkerboard views are one camera's images: the capture's options have no meaning there.
       only_with({"--frames", "--fps", "--cameras", "--radius", "--height", "--target-height", "--subject", "--miscalibrate", "--noise",
-                 "--color-format", "--jpeg-quality", "--no-floor"},
+                 "--no-shadows", "--no-edge-dropout", "--no-holes", "--no-axial-noise", "--no-quantization", "--color-format",
+                 "--jpeg-quality", "--no-floor"},
                 false, "a capture (not with --checkerboard)");
     }
-    if (args->wand && cmd->count("--color-format") > 0 && args->color_format != "png") {
-      throw InvalidInput("--color-format: a wand capture's colour is always PNG");
+    // A wand capture's colour is PNG, a fakenect dump's PPM: their format options mean nothing.
+    only_with({"--jpeg-quality"}, !args->wand && args->fakenect.empty(), "a capture (not with --wand or --fakenect)");
+    if ((args->wand || !args->fakenect.empty()) && cmd->count("--color-format") > 0) {
+      throw InvalidInput(std::string("--color-format: ") + (args->wand ? "a wand capture's colour is always PNG" : "a fakenect dump's colour is PPM"));
     }
     args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
     args->color_noise_given = color_noise->count() > 0;

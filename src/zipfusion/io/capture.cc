@@ -187,6 +187,9 @@ void Capture::check_output_outside(const fs::path& output, std::string_view opti
                        "; write it outside the capture's folders");
   };
   if (out == root) refuse("is the folder");
+  // In the folder itself only rig.json may be replaced (a refined rig written back); its other
+  // files (timestamps.csv of a recording, files of other tools) are the capture's.
+  if (out.parent_path() == root && out.filename() != "rig.json" && fs::exists(out, ec)) refuse("is a file");
   if (within(out, resolved(dir_ / "ground_truth"))) refuse("lies in the ground truth");
   for (const CameraModel& camera : rig_.cameras) {
     if (within(out, resolved(dir_ / camera.name))) refuse("lies among the frames of camera " + camera.name);

@@ -94,9 +94,10 @@ class Capture {
   FrameSet load_frame(int frame) const;
 
   //! Throws InvalidInput ("OPTION: …") when `output` would be written among the capture's own
-  //! files: the capture folder itself, or its ground truth or a camera's folder or anything in
-  //! them (meshes written there would replace the true ones, or mix with the frames). Links are
-  //! resolved first. The capture's rig.json itself may be replaced (a refined rig written back).
+  //! files: the capture folder itself, a file in it, or its ground truth or a camera's folder or
+  //! anything in them (meshes written there would replace the true ones, or mix with the frames).
+  //! Links are resolved first. The capture's rig.json may be replaced (a refined rig written
+  //! back), and a new file or folder of one's own made in the capture folder.
   void check_output_outside(const std::filesystem::path& output, std::string_view option) const;
 
   //! Reads the frames through another calibration of the same cameras (a `--rig`): its depth

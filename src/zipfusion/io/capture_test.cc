@@ -1,7 +1,11 @@
 #include "zipfusion/io/capture.h"
 
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <jpeglib.h>
 #include <zlib.h>
@@ -181,6 +185,34 @@ TEST(FolderPath, TrailingSeparatorsAndDotsGo) {
   EXPECT_EQ(folder_path("link/../out"), fs::path("link/../out"));  // ".." is the OS's to resolve, through a link
   EXPECT_EQ(folder_path("."), fs::path("."));
   EXPECT_EQ(folder_path("/"), fs::path("/"));
+}
+
+// A staging folder that a killed run left (its process gone, its lock free) goes with the next
+// run; one whose process lives, or whose lock is held (a run in another PID namespace), stays.
+// A run that fails removes the parent folders it made.
+TEST(WriteFolderAtomic, RemovesOnlyAbandonedStagingFolders) {
+  const fs::path dir = fs::temp_directory_path() / ("zf_write_folder_staging_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const pid_t gone = ::fork();
+  if (gone == 0) ::_exit(0);
+  ASSERT_GT(gone, 0);
+  ASSERT_EQ(::waitpid(gone, nullptr, 0), gone);
+  const fs::path abandoned = dir / (".cap.partial-" + std::to_string(gone));
+  const fs::path alive = dir / (".cap.partial-" + std::to_string(::getppid()));
+  const fs::path held = dir / ".cap.partial-999999999";
+  for (const fs::path& p : {abandoned, alive, held}) fs::create_directories(p / "cam0");
+  const int lock = ::open(held.c_str(), O_RDONLY | O_DIRECTORY);
+  ASSERT_EQ(::flock(lock, LOCK_EX), 0);
+  write_folder_atomic(dir / "cap", [](const fs::path& staging) { write_file_atomic(staging / "rig.json", "{}"); });
+  ::close(lock);
+  EXPECT_TRUE(fs::exists(dir / "cap" / "rig.json"));
+  EXPECT_FALSE(fs::exists(abandoned));
+  EXPECT_TRUE(fs::exists(alive));
+  EXPECT_TRUE(fs::exists(held));
+  EXPECT_THROW(write_folder_atomic(dir / "a" / "b" / "cap", [](const fs::path&) { throw IoError("no subject"); }), IoError);
+  EXPECT_FALSE(fs::exists(dir / "a"));
+  fs::remove_all(dir);
 }
 
 // An output folder named through links is written where they end; the links stay links.

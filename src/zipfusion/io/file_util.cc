@@ -7,6 +7,7 @@
 #include <system_error>
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -153,8 +154,21 @@ std::string in_folder_asked_for(std::string text, const std::filesystem::path& s
   return text;
 }
 
+// The writing run holds an exclusive flock on its staging folder until the rename: a lock any
+// process on the machine (in any PID namespace) can see, and that the kernel drops when the
+// process dies. Returns the descriptor to close afterwards, or -1.
+int lock_staging(const std::filesystem::path& staging) {
+  const int fd = ::open(staging.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0 && ::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
 // A killed run (SIGKILL, a power cut) leaves its staging folder, ".NAME.partial-PID", and no
-// later run has its PID: such folders whose process is gone are removed before a new one is made.
+// later run has its PID. Such a folder is removed before a new one is made when no process holds
+// its lock and its PID names no process here (a run in another PID namespace holds the lock).
 void remove_abandoned_staging(const std::filesystem::path& parent, const std::string& prefix) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -165,7 +179,10 @@ void remove_abandoned_staging(const std::filesystem::path& parent, const std::st
     if (!std::all_of(pid_text.begin(), pid_text.end(), [](char c) { return c >= '0' && c <= '9'; }) || pid_text.size() > 9) continue;
     const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
     if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    const int lock = lock_staging(entry.path());
+    if (lock < 0) continue;  // held: a run is writing it
     fs::remove_all(entry.path(), ec);
+    ::close(lock);
   }
 }
 
@@ -196,8 +213,16 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
       if (!fs::remove(p, ec) || p == first_made) break;  // remove() takes only an empty folder
     }
   };
+  int lock = -1;
+  struct Unlock {
+    int& fd;
+    ~Unlock() {
+      if (fd >= 0) ::close(fd);
+    }
+  } unlock{lock};
   try {
     fs::create_directories(staging);
+    lock = lock_staging(staging);
     fill(staging);
     if (fs::exists(dir, ec)) fs::remove(dir);  // an empty folder: check_new_folder allowed it
     fs::rename(staging, dir);

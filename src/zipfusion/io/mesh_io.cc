@@ -629,7 +629,8 @@ namespace {
 // first word means the file is not OBJ (a PLY named .obj, binary bytes): reading it as a mesh
 // without faces would pass garbage on as an empty reconstruction.
 bool is_obj_statement(std::string_view keyword) {
-  static constexpr std::string_view kStatements[] = {"v",     "vt",   "vn",    "vp",    "f",     "l",     "p",        "g",        "o",
+  static constexpr std::string_view kStatements[] = {"call", "csh",  // "call" is refused where it is read, "csh" ignored (never run)
+                                                     "v",     "vt",   "vn",    "vp",    "f",     "l",     "p",        "g",        "o",
                                                      "s",     "mg",   "mtllib", "usemtl", "cstype", "deg",  "bmat",     "step",     "curv",
                                                      "curv2", "surf", "parm",  "trim",  "hole",  "scrv",  "sp",       "end",      "con",
                                                      "bevel", "lod",  "maplib", "usemap", "ctech", "stech", "c_interp", "d_interp", "shadow_obj",
@@ -640,6 +641,7 @@ bool is_obj_statement(std::string_view keyword) {
 }  // namespace
 
 TriangleMesh parse_obj(std::string_view text, const std::string& source) {
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // a UTF-8 byte order mark (Windows exporters)
   TriangleMesh mesh;
   bool all_colored = true;
   std::vector<int> corners;
@@ -652,6 +654,7 @@ TriangleMesh parse_obj(std::string_view text, const std::string& source) {
     if (tokens.empty()) continue;
     const std::string where = "line " + std::to_string(lines.line_number());
     if (!is_obj_statement(tokens[0])) fail(source, where + ": not an OBJ statement: " + quote_token(tokens[0]) + " (not an OBJ file?)");
+    if (tokens[0] == "call") fail(source, where + ": \"call\" includes another file, which is not read; merge the files into one");
     if (tokens[0] == "v") {
       if (tokens.size() < 4) fail(source, where + ": a vertex needs x y z");
       if (mesh.positions.size() >= static_cast<size_t>(std::numeric_limits<int>::max())) {

@@ -228,6 +228,10 @@ TEST(MeshIo, ObjRefusesWhatIsNotObj) {
                  {"renamed.obj", "line 1", "not an OBJ statement", "ply"});
   expect_invalid([] { parse_obj(std::string_view("v 0 0 0\n\x7f\x01\x02garbage\n", 18), "binary.obj"); }, {"binary.obj", "line 2"});
   EXPECT_EQ(parse_obj("", "empty.obj").triangle_count(), 0u);
+  // The specification's other statements, and a UTF-8 byte order mark, are OBJ.
+  EXPECT_EQ(parse_obj("\xEF\xBB\xBF# exported\ncsh echo\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "bom.obj").triangle_count(), 1u);
+  // An included file would be geometry silently missing.
+  expect_invalid([] { parse_obj("call other.obj\n", "call.obj"); }, {"call.obj", "line 1", "includes another file"});
   EXPECT_EQ(parse_obj("# only a comment\n\n", "comment.obj").vertex_count(), 0u);
 }
 

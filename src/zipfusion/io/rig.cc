@@ -100,7 +100,6 @@ class Fields {
   std::string path_;
 };
 
-
 void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
   const double fold = distortion_fold_share(k);
   if (fold > 0) {

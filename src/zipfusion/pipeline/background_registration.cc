@@ -67,7 +67,9 @@ void BackgroundRegistration::run() {
     try {
       std::vector<std::vector<Image<float>>> depth;
       for (const FrameSet& set : window) depth.push_back(registration_depth(rig, set, options_.registration));
-      RegistrationResult result = register_rig(rig, depth, options_.registration);
+      RegistrationOptions registration = options_.registration;
+      registration.measure_fixed = false;  // what is published is decided by the residuals below
+      RegistrationResult result = register_rig(rig, depth, registration);
       // Published only when the surfaces agree at least as well as before where both poses gave
       // correspondences, and every camera that had some still has: a window where the cameras
       // barely overlap must not move a good calibration, and poses whose depth did not meet at

@@ -1,12 +1,12 @@
 #include "zipfusion/registration/gpa_icp.h"
 
 #include <algorithm>
-#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <nanoflann.hpp>
+#include <Eigen/Eigenvalues>
 #include <numbers>
 
 #include "zipfusion/core/error.h"
@@ -334,7 +334,7 @@ Accumulated accumulate(Clouds& clouds, const Poses& poses, float max_distance, c
           sums.h.noalias() += res.weight * j.topRows(rows).transpose() * j.topRows(rows);
           sums.g.noalias() += res.weight * j.topRows(rows).transpose() * r.head(rows);
           sums.weighted_sq += res.weight * r.head(rows).squaredNorm();
-          sums.used_support += res.support;
+          sums.used_support += res.support * rows;  // a residual row each
         }
       }
     }
@@ -509,7 +509,7 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
   // posteriori variance factor: depth quieter or noisier than the model says fixes the poses
   // better or worse). The damping only keeps a direction nothing fixes finite.
   result.least_fixed_m.assign(cameras, 0);
-  if (!free_cameras.empty()) {
+  if (options.measure_fixed && !free_cameras.empty()) {
     Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
     Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);
     const Accumulated final_sums = accumulate(finest, poses, static_cast<float>(options.end_distance_m), weighting, options, &h, &g, true);
@@ -519,10 +519,17 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
     const Eigen::MatrixXd covariance = variance_factor * 1e-6 * hf.ldlt().solve(Eigen::MatrixXd::Identity(hf.rows(), hf.cols()));
     for (size_t k = 0; k < free_cameras.size(); ++k) {
       const Eigen::Index at = 6 * static_cast<Eigen::Index>(k);
-      Eigen::Matrix<double, 6, 6> block = covariance.block<6, 6>(at, at);
-      block.topLeftCorner<3, 3>() *= kLeverArmM * kLeverArmM;  // radians as metres at the lever arm
-      block.topRightCorner<3, 3>() *= kLeverArmM;
-      block.bottomLeftCorner<3, 3>() *= kLeverArmM;
+      // The unknowns (ω, t) turn the camera about the world's origin and shift it: its centre c
+      // moves by ω × c + t. Taken as a turn about its own centre and that centre's move, scaled
+      // to metres at the lever arm, the figure does not change with where the world's origin is.
+      const Eigen::Vector3d centre = poses.world_from_depth[free_cameras[k]].translation();
+      Eigen::Matrix3d centre_cross;
+      centre_cross << 0, -centre.z(), centre.y(), centre.z(), 0, -centre.x(), -centre.y(), centre.x(), 0;
+      Eigen::Matrix<double, 6, 6> about_centre = Eigen::Matrix<double, 6, 6>::Zero();
+      about_centre.topLeftCorner<3, 3>() = kLeverArmM * Eigen::Matrix3d::Identity();
+      about_centre.bottomLeftCorner<3, 3>() = -centre_cross;
+      about_centre.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity();
+      const Eigen::Matrix<double, 6, 6> block = about_centre * covariance.block<6, 6>(at, at) * about_centre.transpose();
       const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(block, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
       result.least_fixed_m[free_cameras[k]] = std::sqrt(std::max(largest, 0.0));
     }

@@ -61,6 +61,7 @@ struct RegistrationOptions {
   bool floor_counts_once = true;   // the floor's correspondences (both points below the volume's min z, world z up; none without a volume) weigh 1/F over F frames: it is the same in every frame set
   int min_correspondences = 50;    // a pair with fewer over all its frames (before trimming; the floor's count 1/F) does not count
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
+  bool measure_fixed = true;       // RegistrationResult::least_fixed_m (one more matching pass over the finest level); false: all 0
   int num_threads = 0;             // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming `zipfusion register`'s option (--trim) or, where it has none, the field

@@ -183,8 +183,8 @@ TEST(RegisterRig, TheFloorAloneLeavesACameraLooselyFixed) {
   }
   const RegistrationResult floor_only = register_rig(ring.start, depth_of(ring, options), options);
   ASSERT_TRUE(floor_only.joined_to_gauge[1]);
-  // 5.4 against 0.04 mm here: noise-free depth scales both down (the residuals' (r/σ)²), and the
-  // floor's far edges still hold a little; past register's --trust-within of 1.5 mm either way.
+  // 9.1 against 0.07 mm here: noise-free depth scales both down (the residuals' (r/σ)²), and the
+  // floor's far edges still hold a little; past register's --trust-within of 2 mm either way.
   EXPECT_GT(floor_only.least_fixed_m[1], 100 * with_person.least_fixed_m[1]);
   EXPECT_GT(floor_only.least_fixed_m[1], 0.003);
 }
