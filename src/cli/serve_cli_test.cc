@@ -49,6 +49,12 @@ std::pair<int, std::string> wait_for_serving(const std::filesystem::path& out) {
   return {url.empty() ? 0 : std::stoi(url[1]), text};
 }
 
+// A viewer's WebSocket to serve's stream on this machine.
+void connect_viewer(boost::beast::websocket::stream<boost::asio::ip::tcp::socket>& ws, int port) {
+  ws.next_layer().connect({boost::asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
+  ws.handshake("127.0.0.1", "/stream");
+}
+
 TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 6 --cameras 2").exit_code, 0);
@@ -84,8 +90,7 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   ASSERT_NE(port, 0) << text;
   net::io_context io;
   websocket::stream<net::ip::tcp::socket> ws(io);
-  ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
-  ws.handshake("127.0.0.1", "/stream");
+  connect_viewer(ws, port);
   auto send = [&](const std::string& command_text) {
     ws.text(true);
     ws.write(net::buffer(command_text));
@@ -163,8 +168,7 @@ TEST_F(ServeCli, CtrlCStopsAtOnceBetweenSlowFrames) {
   {
     net::io_context io;
     websocket::stream<net::ip::tcp::socket> ws(io);
-    ws.next_layer().connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)});
-    ws.handshake("127.0.0.1", "/stream");
+    connect_viewer(ws, port);
     boost::beast::flat_buffer buffer;
     ws.read(buffer);
     const nlohmann::json hello = nlohmann::json::parse(boost::beast::buffers_to_string(buffer.data()));
