@@ -420,6 +420,11 @@ TEST_F(Cli, SynthLeavesNothingWhenItFailsAndTakesTheColourNoiseGiven) {
   ASSERT_EQ(run(plain + (dir_ / "quiet").string()).exit_code, 0);
   ASSERT_EQ(run(plain + (dir_ / "noisy").string() + " --color-noise 20").exit_code, 0);
   EXPECT_NE(read_file_bytes(dir_ / "quiet" / "cam0" / "color" / "000000.png"), read_file_bytes(dir_ / "noisy" / "cam0" / "color" / "000000.png"));
+  // Checkerboard views too take the --color-noise given (their own default otherwise).
+  const std::string board = "synth --checkerboard --views 1 --resolution 160x120 --out ";
+  ASSERT_EQ(run(board + (dir_ / "board_default").string()).exit_code, 0);
+  ASSERT_EQ(run(board + (dir_ / "board_clean").string() + " --color-noise 0").exit_code, 0);
+  EXPECT_NE(read_file_bytes(dir_ / "board_default" / "view_000.png"), read_file_bytes(dir_ / "board_clean" / "view_000.png"));
 }
 
 // Frame files the capture lacks are one warning line saying what becomes of their cameras: left
