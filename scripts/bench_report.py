@@ -176,7 +176,10 @@ def readme_summary(folder):
                     f"(the median of the rounds' ratios; {min(ratios):.2f}–{max(ratios):.2f})")
 
         def quality(name):
-            m = load(folder, f"eval_{name}.json")["mean"]
+            evaluation = load(folder, f"eval_{name}.json")
+            if evaluation is None:
+                sys.exit(f"bench_report: {os.path.join(folder, f'eval_{name}.json')}: not found (run scripts/bench.sh)")
+            m = evaluation["mean"]
             return (f"{compared(m['accuracy_mean_mm'], tsdf['accuracy_mean_mm'], True)} accuracy "
                     f"({m['accuracy_mean_mm']:.2f} against {tsdf['accuracy_mean_mm']:.2f} mm) and "
                     f"{compared(m['completeness'], tsdf['completeness'], False)} completeness "
@@ -194,8 +197,11 @@ def readme_summary(folder):
 
 def rewrite_readme(folder, path):
     """Replaces the paragraph between the README's markers, through a temporary file."""
-    with open(path) as f:
-        readme = f.read()
+    try:
+        with open(path) as f:
+            readme = f.read()
+    except OSError as e:
+        sys.exit(f"bench_report: {path}: cannot read ({e.strerror})")
     start, end = readme.find(README_START), readme.find(README_END)
     if start < 0 or end < start:
         sys.exit(f"bench_report: {path}: the markers of the make bench summary are missing")
