@@ -100,6 +100,8 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       // Live cameras' options on a capture would be ignored.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-wait 1 --stall-timeout 5",
        "zipfusion: error: --stall-timeout, --max-wait: only with --live"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --stall-timeout 2 --depth-format auto",  // the defaults, given
+       "zipfusion: error: --depth-format, --stall-timeout: only with --live"},
       // Usage errors that CLI11 finds: one line too, with the same prefix, exit 2.
       {"frobnicate", "zipfusion: error: unknown command \"frobnicate\" (commands: synth, info,"},
       {"", "zipfusion: error: A subcommand is required"},

@@ -27,6 +27,9 @@ struct LiveDeviceArgs {
   double max_wait_s = -1;            // --max-wait; below 0: 0.25 s for devices, the stall timeout for replays
   bool replay_paced = false;         // replays at their recorded pace (serve: a live stream), not as fast as read
   bool replay_loop = false;          // replays again and again (serve --loop)
+  // The options as given on the command line (add_live_device_options): asked whether they were
+  // given at all, as a value equal to the default is given too.
+  std::vector<const CLI::Option*> given_options;
 };
 
 //! The LiveRig's options for the selected cameras. A device (or a paced replay) delivers in real
@@ -42,23 +45,23 @@ inline LiveRigOptions live_rig_options(const LiveDeviceArgs& args, const std::at
 }
 
 inline void add_live_device_options(CLI::App* cmd, LiveDeviceArgs& args) {
-  cmd->add_option("--devices", args.devices,
-                  "Kinect v1 devices: all, or comma-separated indices (0,2) or serials, in the rig's camera order (cam0, cam1, ...)");
-  cmd->add_option("--replay", args.replay,
+  args.given_options.push_back(cmd->add_option("--devices", args.devices,
+                  "Kinect v1 devices: all, or comma-separated indices (0,2) or serials, in the rig's camera order (cam0, cam1, ...)"));
+  args.given_options.push_back(cmd->add_option("--replay", args.replay,
                   "Instead of devices: fakenect dumps (fakenect-record folders), one per camera, comma-separated, replayed as fast as "
-                  "they can be read (their recording times group the frames; serve plays them at their recorded pace)");
-  cmd->add_option("--depth-format", args.depth_format,
+                  "they can be read (their recording times group the frames; serve plays them at their recorded pace)"));
+  args.given_options.push_back(cmd->add_option("--depth-format", args.depth_format,
                   "Kinect depth: auto (mm where libfreenect registers depth, raw under fakenect), mm, registered (on the colour "
                   "camera's grid) or raw (11-bit disparity, converted by the Kinect v1 model)")
       ->check(CLI::IsMember({"auto", "mm", "registered", "raw"}))
-      ->capture_default_str();
-  cmd->add_option("--stall-timeout", args.kinect.stall_timeout_s, "A Kinect without a depth frame this long has been unplugged, seconds")
+      ->capture_default_str());
+  args.given_options.push_back(cmd->add_option("--stall-timeout", args.kinect.stall_timeout_s, "A Kinect without a depth frame this long has been unplugged, seconds")
       ->check(kFiniteNumber & CLI::Range(0.05, 3600.0))
-      ->capture_default_str();
-  cmd->add_option("--max-wait", args.max_wait_s,
+      ->capture_default_str());
+  args.given_options.push_back(cmd->add_option("--max-wait", args.max_wait_s,
                   "A camera's frame this late is left out of its frame set, seconds (default: 0.25 for --devices, the stall timeout "
                   "for --replay, whose frames come as fast as they are read)")
-      ->check(CLI::Range(0.0, 60.0));
+      ->check(CLI::Range(0.0, 60.0)));
 }
 
 inline std::vector<std::string> split_commas(const std::string& text) {
@@ -76,14 +79,9 @@ inline std::vector<std::string> split_commas(const std::string& text) {
 //! would be ignored).
 inline void check_no_live_device_options(const LiveDeviceArgs& args) {
   std::string given;
-  auto note = [&](bool set, const char* option) {
-    if (set) given += (given.empty() ? "" : ", ") + std::string(option);
-  };
-  note(!args.devices.empty(), "--devices");
-  note(!args.replay.empty(), "--replay");
-  note(args.depth_format != LiveDeviceArgs{}.depth_format, "--depth-format");
-  note(args.kinect.stall_timeout_s != KinectOptions{}.stall_timeout_s, "--stall-timeout");
-  note(args.max_wait_s != LiveDeviceArgs{}.max_wait_s, "--max-wait");
+  for (const CLI::Option* option : args.given_options) {
+    if (option->count() > 0) given += (given.empty() ? "" : ", ") + option->get_name();
+  }
   if (!given.empty()) throw InvalidInput(given + ": only with --live");
 }
 
