@@ -68,7 +68,6 @@ void run_synth(SynthArgs& args) {
   if (args.no_quantization) options.noise.disparity_quantization = false;
   if (args.no_floor) options.floor = false;
 
-  if (args.wand + args.checkerboard + !args.fakenect.empty() > 1) throw InvalidInput("--wand, --checkerboard, --fakenect: choose one");
   if (!args.fakenect.empty()) {
     if (!args.out.empty()) throw InvalidInput("--out, --fakenect: choose one (--fakenect DIR is where the dump goes)");
     const FakenectSceneResult result =
@@ -162,15 +161,14 @@ void add_synth_command(CLI::App& app) {
   cmd->add_flag("--no-holes", args->no_holes, "No small random holes");
   cmd->add_flag("--no-axial-noise", args->no_axial_noise, "No axial noise sigma(z)");
   cmd->add_flag("--no-quantization", args->no_quantization, "No 1/8-px disparity quantisation");
-  CLI::Option* color_noise =
-      cmd->add_option("--color-noise", o.color_noise_sigma, "Colour noise sigma, 8-bit levels (0 with --noise none unless given)")->capture_default_str();
+  cmd->add_option("--color-noise", o.color_noise_sigma, "Colour noise sigma, 8-bit levels (0 with --noise none unless given)")->capture_default_str();
   cmd->add_option("--color-format", args->color_format, "Colour files: jpg or png")
       ->check(CLI::IsMember({"jpg", "png"}))
       ->capture_default_str();
   cmd->add_option("--jpeg-quality", o.jpeg_quality, "JPEG quality 1..100")->capture_default_str();
   cmd->add_flag("--no-floor", args->no_floor, "Do not render the floor");
   add_threads_option(cmd, o.num_threads);
-  cmd->callback([args, cmd, color_noise] {
+  cmd->callback([args, cmd] {
     // An option of another mode would be ignored: refused, naming the mode it belongs to.
     auto only_with = [&](std::initializer_list<const char*> options, bool mode_chosen, const std::string& mode) {
       std::string given;
@@ -179,6 +177,7 @@ void add_synth_command(CLI::App& app) {
       }
       if (!given.empty() && !mode_chosen) throw InvalidInput(given + ": only with " + mode);
     };
+    // One mode first: its own options are then judged against it.
     if (args->wand + args->checkerboard + !args->fakenect.empty() > 1) throw InvalidInput("--wand, --checkerboard, --fakenect: choose one");
     only_with({"--views", "--board", "--square"}, args->checkerboard, "--checkerboard");
     only_with({"--led-distance", "--led-jitter"}, args->wand, "--wand");
@@ -196,7 +195,7 @@ void add_synth_command(CLI::App& app) {
       throw InvalidInput(std::string("--color-format: ") + (args->wand ? "a wand capture's colour is always PNG" : "a fakenect dump's colour is PPM"));
     }
     args->wand_options.frames = cmd->count("--frames") > 0 ? args->options.frames : 300;
-    args->color_noise_given = color_noise->count() > 0;
+    args->color_noise_given = cmd->count("--color-noise") > 0;
     run_synth(*args);
   });
 }

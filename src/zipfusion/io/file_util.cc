@@ -124,6 +124,21 @@ std::filesystem::path output_folder(const std::filesystem::path& asked_for) {
   return dir;
 }
 
+namespace {
+
+// `path` if it exists, else the nearest folder above it that does ("." above a relative path's
+// first folder): where making `path`'s missing folders starts.
+std::filesystem::path nearest_existing(std::filesystem::path path) {
+  std::error_code ec;
+  while (!std::filesystem::exists(path, ec)) {
+    if (!path.has_parent_path() || path == path.parent_path()) return path.is_absolute() ? path : std::filesystem::path(".");
+    path = path.parent_path();
+  }
+  return path;
+}
+
+}  // namespace
+
 void check_new_folder(const std::filesystem::path& asked_for, std::string_view option) {
   namespace fs = std::filesystem;
   const fs::path dir = output_folder(asked_for);
@@ -138,8 +153,7 @@ void check_new_folder(const std::filesystem::path& asked_for, std::string_view o
   }
   // The parent is made by the writing, not here: a run that fails before it (a subject file
   // missing) leaves no empty folders behind. Here only nothing may stand in its way.
-  fs::path existing = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
-  while (!fs::exists(existing, ec) && existing.has_parent_path() && existing != existing.parent_path()) existing = existing.parent_path();
+  const fs::path existing = nearest_existing(dir.has_parent_path() ? dir.parent_path() : fs::path("."));
   if (fs::exists(existing, ec) && !fs::is_directory(existing, ec)) {
     throw IoError(existing.string() + ": is a file, so the output's parent folder cannot be made there");
   }
@@ -193,24 +207,20 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
   const fs::path dir = output_folder(asked_for);  // the staging folder goes beside it, not into it
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
   // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) on "." + string + … once inlined here.
-  std::string staging_name = ".";
-  staging_name += dir.filename().string();
-  staging_name += ".partial-";
-  staging_name += std::to_string(::getpid());
-  const fs::path staging = parent / staging_name;
+  std::string staging_prefix = ".";
+  staging_prefix += dir.filename().string();
+  staging_prefix += ".partial-";
+  const fs::path staging = parent / (staging_prefix + std::to_string(::getpid()));
   std::error_code ec;
-  remove_abandoned_staging(parent, staging_name.substr(0, staging_name.size() - std::to_string(::getpid()).size()));
+  remove_abandoned_staging(parent, staging_prefix);
   fs::remove_all(staging, ec);
-  // The folders this call makes above the staging folder, removed again if it fails.
-  fs::path first_made;
-  for (fs::path p = parent; !p.empty() && !fs::exists(p, ec); p = p.has_parent_path() && p != p.parent_path() ? p.parent_path() : fs::path()) {
-    first_made = p;
-  }
+  // The folders this call makes above the staging folder (those below `existing`), removed again
+  // if it fails.
+  const fs::path existing = nearest_existing(parent);
   auto clean_up = [&] {
     fs::remove_all(staging, ec);
-    if (first_made.empty()) return;
-    for (fs::path p = parent;; p = p.parent_path()) {
-      if (!fs::remove(p, ec) || p == first_made) break;  // remove() takes only an empty folder
+    for (fs::path p = parent; !p.empty() && p != existing; p = p.parent_path()) {
+      if (!fs::remove(p, ec)) break;  // remove() takes only an empty folder
     }
   };
   int lock = -1;

@@ -132,6 +132,14 @@ int nearest(const Cloud& cloud, const Vec3& query_in_cam, float max_d2, float* d
 
 // One correspondence's linearised residual: r + J·x, with x the 6N pose updates (ω, t) in the world
 // frame, J nonzero only in the two cameras' blocks.
+// [v]×, the matrix with [v]× w = v × w.
+template <typename Scalar>
+Eigen::Matrix<Scalar, 3, 3> cross_matrix(const Eigen::Matrix<Scalar, 3, 1>& v) {
+  Eigen::Matrix<Scalar, 3, 3> m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
 struct Residual {
   int a = 0, b = 0;
   Eigen::Matrix<float, 3, 6> ja, jb;  // point-to-plane uses row 0 only
@@ -215,11 +223,9 @@ void match_pair(const Cloud& ca, const Cloud& cb, int a, int b, const Poses& pos
     } else {
       variance = sa * sa + sb * sb;
       res.r = diff;
-      Eigen::Matrix3f skew_a, skew_b;
-      skew_a << 0, pa.z(), -pa.y(), -pa.z(), 0, pa.x(), pa.y(), -pa.x(), 0;  // ω × p = −[p]× ω
-      skew_b << 0, pb.z(), -pb.y(), -pb.z(), 0, pb.x(), pb.y(), -pb.x(), 0;
-      res.ja << skew_a, Eigen::Matrix3f::Identity();
-      res.jb << -skew_b, -Eigen::Matrix3f::Identity();
+      // ω × p = −[p]× ω
+      res.ja << -cross_matrix(pa), Eigen::Matrix3f::Identity();
+      res.jb << cross_matrix(pb), -Eigen::Matrix3f::Identity();
     }
     const float sigma = std::sqrt(std::max(variance, 1e-8f));
     res.scaled = res.r.norm() / sigma;
@@ -523,11 +529,9 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
       // moves by ω × c + t. Taken as a turn about its own centre and that centre's move, scaled
       // to metres at the lever arm, the figure does not change with where the world's origin is.
       const Eigen::Vector3d centre = poses.world_from_depth[free_cameras[k]].translation();
-      Eigen::Matrix3d centre_cross;
-      centre_cross << 0, -centre.z(), centre.y(), centre.z(), 0, -centre.x(), -centre.y(), centre.x(), 0;
       Eigen::Matrix<double, 6, 6> about_centre = Eigen::Matrix<double, 6, 6>::Zero();
       about_centre.topLeftCorner<3, 3>() = kLeverArmM * Eigen::Matrix3d::Identity();
-      about_centre.bottomLeftCorner<3, 3>() = -centre_cross;
+      about_centre.bottomLeftCorner<3, 3>() = -cross_matrix(centre);
       about_centre.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity();
       const Eigen::Matrix<double, 6, 6> block = about_centre * covariance.block<6, 6>(at, at) * about_centre.transpose();
       const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(block, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();

@@ -81,11 +81,12 @@ struct RegistrationResult {
   // it keeps its starting pose.
   std::vector<char> joined_to_gauge;
   // Per camera: how far its pose could slide along the direction its final correspondences fix
-  // least, the formal standard deviation there (metres; a rotation counts times a 2 m lever arm),
-  // from the normal equations at the refined poses with every other camera free but the gauge,
-  // scaled by the residuals' mean (r/σ)² (quieter depth than the noise model fixes them better).
-  // A camera tied only by the floor (one plane: nothing fixes its slide along it) has metres or
-  // more; one that several surfaces hold, micrometres. 0 for the gauge.
+  // least, the formal standard deviation there (metres; a turn about its own centre counts times
+  // a 2 m lever arm), from the normal equations at the refined poses with every other camera free
+  // but the gauge, scaled by the residuals' mean (r/σ)² (quieter depth than the noise model fixes
+  // them better). A camera tied only by the floor (little fixes its slide along it) has about a
+  // hundred times the figure of one the person holds too (gpa_icp_test). 0 for the gauge, and
+  // for all with measure_fixed false.
   std::vector<double> least_fixed_m;
   int iterations = 0;                      // Gauss-Newton steps taken over all levels
   bool converged = false;                  // the finest level's last step moved less than converged_rad
