@@ -24,6 +24,19 @@ def load(folder, name):
         return json.load(f)
 
 
+def run_date(folder, report):
+    """When `report` (samba.json) was measured: its own date, or for an older report its file's."""
+    if "date" in report:
+        return report["date"]
+    mtime = os.path.getmtime(os.path.join(folder, "samba.json"))
+    return datetime.datetime.fromtimestamp(mtime, datetime.timezone.utc).date().isoformat()
+
+
+def run_os(report):
+    """The kernel the report was measured on; for an older report, this machine's."""
+    return report["machine"].get("os", f"{platform.system()} {platform.release()}")
+
+
 def config(report, name):
     for c in report["configs"]:
         if c["name"] == name:
@@ -159,7 +172,7 @@ def readme_summary(folder):
         sys.exit(f"bench_report: {os.path.join(folder, 'samba.json')}: not found (run scripts/bench.sh)")
     unfiltered, filtered = config(samba, "zipper"), config(samba, "zipper+filter")
     text = (f"For four {samba['depth_size'].replace('x', '×')} Kinect streams, the latest `make bench` (docs/benchmarks.md, "
-            f"{datetime.date.today().isoformat()}, {samba['machine']['cpu']}, {samba['machine']['hardware_threads']} hardware "
+            f"{run_date(folder, samba)}, {samba['machine']['cpu']}, {samba['machine']['hardware_threads']} hardware "
             f"threads) measured medians of {unfiltered['ms']['total']['median']:.1f} ms per frame set "
             f"({unfiltered['fps']:.1f} fps) without a filter and {filtered['ms']['total']['median']:.1f} ms with the paper's "
             "bilateral filter, at full resolution, in its per-stage table.")
@@ -217,8 +230,8 @@ def main(folder):
         sys.exit(f"bench_report: {os.path.join(folder, 'samba.json')}: not found (run scripts/bench.sh)")
     out = ["# Benchmarks", "",
            "Written by `make bench` (scripts/bench.sh, then scripts/bench_report.py); raw results in out/bench/.",
-           f"Run {datetime.date.today().isoformat()} on {samba['machine']['cpu']}, {samba['machine']['hardware_threads']} hardware threads, "
-           f"{platform.system()} {platform.release()}. Times are wall-clock per frame set, medians and 95th percentiles over "
+           f"Run {run_date(folder, samba)} on {samba['machine']['cpu']}, {samba['machine']['hardware_threads']} hardware threads, "
+           f"{run_os(samba)}. Times are wall-clock per frame set, medians and 95th percentiles over "
            f"{samba['frames']} frame sets × {samba['repeat']} passes; decoding is apart from reconstruction.", ""]
 
     out += ["## Per stage on samba-4cam (the paper's Table IV)", "",

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include "cli/cli_test_util.h"
 
@@ -21,6 +22,9 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_EQ(report["cameras"], 3);
   EXPECT_EQ(report["frames"], 2);
   EXPECT_GT(report["decode_ms"]["median"].get<double>(), 0);
+  // When and where it ran, for a report written later (scripts/bench_report.py).
+  EXPECT_TRUE(std::regex_match(report["date"].get<std::string>(), std::regex(R"(20\d\d-[01]\d-[0-3]\d)"))) << report["date"];
+  EXPECT_EQ(report["machine"]["os"].get<std::string>().rfind("Linux ", 0), 0u) << report["machine"]["os"];
   std::map<std::string, nlohmann::json> configs;
   for (const auto& c : report["configs"]) configs[c["name"]] = c;
   ASSERT_EQ(configs.size(), 12u);

@@ -2,12 +2,14 @@
 // paper's Tables III–V, with the configurations side by side, frame rate and memory.
 
 #include <sys/resource.h>
+#include <sys/utsname.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -149,6 +151,23 @@ ConfigResult run_config(const BenchConfig& config, const Rig& rig, const std::ve
   return out;
 }
 
+// The kernel, as `uname -sr` prints it: timings move with it.
+std::string operating_system() {
+  utsname name{};
+  if (uname(&name) != 0) return "unknown";
+  return std::string(name.sysname) + " " + name.release;
+}
+
+// Today's date in UTC, YYYY-MM-DD: when the timings were taken (a report may be written later).
+std::string utc_date() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[16];
+  std::strftime(text, sizeof text, "%Y-%m-%d", &utc);
+  return text;
+}
+
 void run_bench(const BenchArgs& args) {
   if (args.frames < 1) throw InvalidInput("--frames: must be at least 1");
   if (args.repeat < 1) throw InvalidInput("--repeat: must be at least 1");
@@ -236,7 +255,8 @@ void run_bench(const BenchArgs& args) {
 
   const Percentiles decode = percentiles(decode_ms);
   nlohmann::ordered_json report;
-  report["machine"] = {{"cpu", cpu_model()}, {"hardware_threads", hardware_threads()}};
+  report["date"] = utc_date();
+  report["machine"] = {{"cpu", cpu_model()}, {"hardware_threads", hardware_threads()}, {"os", operating_system()}};
   report["capture"] = args.capture;
   report["cameras"] = capture.camera_count();
   report["depth_size"] = std::to_string(rig.cameras[0].depth_intrinsics.width) + "x" + std::to_string(rig.cameras[0].depth_intrinsics.height);

@@ -146,8 +146,7 @@ void run_serve(ServeArgs& args) {
 
   install_stop_on_signal();
   const std::string& host = args.server.bind_address;
-  // An IPv6 address goes in brackets (RFC 3986), or its colons would read as the port's.
-  std::string url = "http://" + (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + std::to_string(server.port()) + "/";
+  std::string url = "http://" + url_host(host) + ":" + std::to_string(server.port()) + "/";
   if (!args.server.token.empty()) url += "?token=" + args.server.token;
   std::cout << "serving " << url << " (" << in.rig.cameras.size() << " cameras, " << in.rig.fps << " fps, lod "
             << r.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;

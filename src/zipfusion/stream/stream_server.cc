@@ -465,6 +465,13 @@ std::optional<ClientCommand> parse_client_command(std::string_view text) {
   return out;
 }
 
+std::string url_host(const std::string& address) {
+  if (address.find(':') == std::string::npos) return address;
+  std::string host = "[";
+  for (const char c : address) host += c == '%' ? std::string("%25") : std::string(1, c);
+  return host + "]";
+}
+
 std::string frame_message(const std::string& header_json, const std::string& draco_bytes) {
   std::string message = "ZFM1";
   const auto length = static_cast<std::uint32_t>(header_json.size());

@@ -65,6 +65,10 @@ std::optional<ClientCommand> parse_client_command(std::string_view text);
 //! Draco bytes.
 std::string frame_message(const std::string& header_json, const std::string& draco_bytes);
 
+//! The host part of a URL for a bind address: an IPv6 address in brackets (RFC 3986), or its
+//! colons would read as the port's, with the '%' before a zone id written as "%25" (RFC 6874).
+std::string url_host(const std::string& address);
+
 class StreamServer {
  public:
   //! Binds and starts serving on its own thread. `hello_json` is sent to every client first.

@@ -108,6 +108,13 @@ class StreamServerTest : public ::testing::Test {
   fs::path dir_;
 };
 
+TEST(StreamServerUrl, IPv6HostsGoInBracketsWithTheirZoneEscaped) {
+  EXPECT_EQ(url_host("127.0.0.1"), "127.0.0.1");
+  EXPECT_EQ(url_host("localhost"), "localhost");
+  EXPECT_EQ(url_host("::1"), "[::1]");
+  EXPECT_EQ(url_host("fe80::1%eth0"), "[fe80::1%25eth0]");
+}
+
 TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   StreamServer server({.port = 0, .web_root = dir_}, R"({"format":"zipfusion.stream/1"})");
   ASSERT_GT(server.port(), 0);
