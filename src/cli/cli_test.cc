@@ -379,6 +379,48 @@ TEST_F(Cli, AnUnusableGroundTruthRigStopsOnlyWhatNeedsIt) {
   }
 }
 
+// Cameras at one pose (a capture recorded without --rig has identity poses) would lay their
+// meshes over each other: reconstruct, bench and register refuse such a rig, naming the file and
+// the camera, and write nothing; info shows it, and --strict makes it an error. The same rig
+// from --rig is refused likewise, and a calibration given with --rig makes the capture usable.
+TEST_F(Cli, CamerasAtOnePoseAreAnUncalibratedRig) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 3 --resolution 160x120 --noise none").exit_code, 0);
+  Rig rig = read_rig(capture / "rig.json");
+  const fs::path calibrated = dir_ / "calibrated.json";
+  write_rig(calibrated, rig);
+  // Camera 2 a few millimetres and a fraction of a degree from camera 0: still one place.
+  rig.cameras[2].world_from_depth = rig.cameras[0].world_from_depth * Rigid3d(Eigen::AngleAxisd(0.005, Eigen::Vector3d::UnitY()));
+  rig.cameras[2].world_from_depth.translation() += Eigen::Vector3d(0.004, -0.003, 0.002);
+  write_rig(capture / "rig.json", rig);
+  const std::string problem = "rig.json: cameras[2].world_from_depth: the pose of cameras[0] (\"cam0\" and \"cam2\" within 1 cm and 1 degree)";
+  const fs::path out = dir_ / "out";
+  for (const std::string& args : {"reconstruct " + capture.string() + " --out " + out.string(), "bench " + capture.string() + " --repeat 1",
+                                  "register " + capture.string() + " --out " + (dir_ / "registered.json").string(),
+                                  "reconstruct " + (dir_ / "cap2").string() + " --out " + out.string(), "info --strict " + capture.string()}) {
+    if (args.find("cap2") != std::string::npos) {  // the same rig through --rig
+      ASSERT_EQ(run("synth --out " + (dir_ / "cap2").string() + " --frames 1 --cameras 3 --resolution 160x120 --noise none").exit_code, 0);
+      const CommandResult r = run(args + " --rig " + (capture / "rig.json").string());
+      EXPECT_EQ(r.exit_code, 2) << r.err;
+      EXPECT_EQ(r.err.rfind("zipfusion: error: " + (capture / problem).string(), 0), 0u) << r.err;
+      continue;
+    }
+    const CommandResult r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("zipfusion: error: " + (capture / problem).string(), 0), 0u) << args << "\n" << r.err;
+    EXPECT_NE(r.err.find("the rig is not calibrated"), std::string::npos) << r.err;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(dir_ / "registered.json"));
+  const CommandResult info = run("info " + capture.string());
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("poses        cameras[2].world_from_depth: the pose of cameras[0]"), std::string::npos) << info.out;
+  const CommandResult with_calibration = run("reconstruct " + capture.string() + " --threads 1 --rig " + calibrated.string() + " --out " + out.string());
+  EXPECT_EQ(with_calibration.exit_code, 0) << with_calibration.err;
+  EXPECT_GT(read_mesh(out / "000000.ply").triangle_count(), 1000u);
+}
+
 // A camera whose frames hold no depth has no depth range: "-" in info's table and null in its
 // JSON, not 0.00 m (a depth no camera measures).
 TEST_F(Cli, InfoGivesNoDepthRangeForACameraWithoutDepth) {

@@ -104,6 +104,7 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     check_no_live_device_options(args.devices);
     in.capture.emplace(open_capture(args.capture, command));
     in.rig = rig_path.empty() ? in.capture->rig() : use_calibration_from(*in.capture, rig_path);
+    check_poses_distinct(in.rig, rig_path.empty() ? (in.capture->dir() / "rig.json").string() : rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
     warn_missing_frames(*in.capture, in.range, command);
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
@@ -136,10 +137,16 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
   in.live = std::make_unique<LiveRig>(open_live_cameras(args.devices), live_rig_options(args.devices, &stop_requested()));
   if (rig_path.empty()) {
     in.rig = make_live_rig(*in.live);
-    std::cout << "no --rig: world poses are identity; calibrate the rig (README.md) and pass --rig\n" << std::flush;
+    // One camera needs no pose; several at one identity pose would lay their meshes over each other.
+    if (in.rig.cameras.size() > 1) {
+      throw InvalidInput("--rig: required with " + std::to_string(in.rig.cameras.size()) +
+                         " live cameras (without it every pose is identity); run zipfusion calibrate and pass its rig.json");
+    }
+    std::cout << "no --rig: world pose is identity\n" << std::flush;
   } else {
     const Rig calibration = read_rig(rig_path);
     in.rig = make_live_rig(*in.live, &calibration, rig_path);
+    check_poses_distinct(in.rig, rig_path);
   }
   in.range = {0, max_frames};
   LiveSourceOptions source_options{.max_frames = max_frames, .max_seconds = args.seconds, .observe = [&in](const LiveFrameSet& set) {

@@ -49,6 +49,7 @@ void run_info(const InfoArgs& args) {
   const Capture capture = Capture::open(args.capture, {.strict = args.strict});
   const Rig& rig = capture.rig();
   const int cameras = capture.camera_count();
+  if (args.strict) check_poses_distinct(rig, (capture.dir() / "rig.json").string());
 
   std::vector<int> frames;
   const int count = capture.frame_count();
@@ -119,6 +120,7 @@ void run_info(const InfoArgs& args) {
     out["ground_truth"] = {{"pose_error_max_deg", worst_deg}, {"pose_error_max_m", worst_m}, {"meshes", capture.has_ground_truth_meshes()}};
   }
   if (!capture.ground_truth_rig_problem().empty()) out["ground_truth_problem"] = capture.ground_truth_rig_problem();
+  if (const std::string problem = shared_pose_problem(rig); !problem.empty()) out["poses_problem"] = problem;
   out["cameras"] = nlohmann::json::array();
   for (int c = 0; c < cameras; ++c) {
     const CameraModel& cam = rig.cameras[c];
@@ -167,6 +169,7 @@ void run_info(const InfoArgs& args) {
   if (out.contains("ground_truth_problem")) {
     std::cout << "ground truth not used: " << out["ground_truth_problem"].get<std::string>() << "\n";
   }
+  if (out.contains("poses_problem")) std::cout << "poses        " << out["poses_problem"].get<std::string>() << "\n";
   std::cout << format("\n%-8s %-14s %-14s %-22s %-13s\n", "camera", "depth", "colour", "position (m)", "view az/el");
   for (int c = 0; c < cameras; ++c) {
     const auto& j = out["cameras"][c];

@@ -338,6 +338,9 @@ TEST_F(RecordCli, BadOptionsGiveOneLineNamingTheOption) {
       {false, "reconstruct --live --replay " + full + " --rig " + small_calibration + " --out " + out,
        small_calibration + ": cameras[0].depth_intrinsics: 320x240, but the device's images are 640x480", 2},
       {false, "reconstruct --live --out " + out, "--devices, --replay: give exactly one", 2},
+      // Two cameras without a calibration would both stand at the identity pose.
+      {false, "reconstruct --live --replay " + full + "," + (kShared / "cut").string() + " --out " + out, "--rig: required with 2 live cameras", 2},
+      {false, "serve --live --replay " + full + "," + (kShared / "cut").string() + " --port 0", "--rig: required with 2 live cameras", 2},
       {false, "reconstruct --live --replay " + full + " --frames 0:3 --out " + out, "--frames: with --live, the number of frame sets", 2},
       {false, "reconstruct --live --replay " + full + " --register once --out " + out, "--register once: needs a capture", 2},
       {false, "reconstruct " + full + " --live --replay " + full + " --out " + out, "--live: takes no CAPTURE", 2},

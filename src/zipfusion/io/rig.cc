@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -319,6 +320,32 @@ std::vector<Rigid3d> world_from_depth_poses(const Rig& rig) {
   poses.reserve(rig.cameras.size());
   for (const CameraModel& cam : rig.cameras) poses.push_back(cam.world_from_depth);
   return poses;
+}
+
+std::optional<std::pair<int, int>> cameras_sharing_a_pose(const Rig& rig) {
+  const double max_angle = kSamePoseDeg * std::numbers::pi / 180;
+  for (size_t j = 1; j < rig.cameras.size(); ++j) {
+    for (size_t i = 0; i < j; ++i) {
+      const Rigid3d& a = rig.cameras[i].world_from_depth;
+      const Rigid3d& b = rig.cameras[j].world_from_depth;
+      const double angle = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+      if ((a.translation() - b.translation()).norm() <= kSamePoseM && angle <= max_angle) return std::pair{static_cast<int>(i), static_cast<int>(j)};
+    }
+  }
+  return std::nullopt;
+}
+
+std::string shared_pose_problem(const Rig& rig) {
+  const auto same = cameras_sharing_a_pose(rig);
+  if (!same) return {};
+  const auto& [i, j] = *same;
+  return "cameras[" + std::to_string(j) + "].world_from_depth: the pose of cameras[" + std::to_string(i) + "] (\"" + rig.cameras[i].name +
+         "\" and \"" + rig.cameras[j].name + "\" within 1 cm and 1 degree): the rig is not calibrated; run zipfusion calibrate and pass its "
+         "rig.json with --rig";
+}
+
+void check_poses_distinct(const Rig& rig, const std::string& source) {
+  if (const std::string problem = shared_pose_problem(rig); !problem.empty()) throw InvalidInput(source + ": " + problem);
 }
 
 void take_camera_calibration(CameraModel& camera, const Rig& calibration, int c, const std::string& source, const std::string& owner) {

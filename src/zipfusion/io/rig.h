@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "zipfusion/core/camera.h"
@@ -71,6 +72,23 @@ std::string format_intrinsics(const Intrinsics& k);
 
 //! Every camera's world_from_depth, in rig order.
 std::vector<Rigid3d> world_from_depth_poses(const Rig& rig);
+
+//! Two cameras that physically stand in one place are not a rig: this close (1 cm, 1°), their
+//! poses are a placeholder (record without --rig writes identity) or a copied entry.
+inline constexpr double kSamePoseM = 0.01;
+inline constexpr double kSamePoseDeg = 1.0;
+
+//! The first two cameras (i < j, in rig order) whose world_from_depth poses lie within kSamePoseM
+//! and kSamePoseDeg of each other, or nullopt: poses no reconstruction can use, as each camera's
+//! mesh would be laid over the others' from the wrong place.
+std::optional<std::pair<int, int>> cameras_sharing_a_pose(const Rig& rig);
+
+//! Where cameras_sharing_a_pose finds two: "cameras[j].world_from_depth: the pose of cameras[i]
+//! ...: the rig is not calibrated" and what to do; empty otherwise.
+std::string shared_pose_problem(const Rig& rig);
+
+//! Throws InvalidInput "`source`: " + shared_pose_problem(rig) where that is not empty.
+void check_poses_distinct(const Rig& rig, const std::string& source);
 
 //! Puts camera `c` of `calibration` (a rig.json read from `source`: what `calibrate` and
 //! `register` write) onto `camera`, the model of the camera whose frames are read: its depth and

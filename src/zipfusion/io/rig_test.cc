@@ -4,6 +4,7 @@
 
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <nlohmann/json.hpp>
 
 #include "zipfusion/core/error.h"
@@ -201,6 +202,40 @@ TEST_F(RigFile, BrokenJsonAndMissingFileAreReported) {
     }
   }
   EXPECT_THROW(read_rig(dir_ / "absent.json"), IoError);
+}
+
+// Two cameras cannot stand in one place: within 1 cm and 1° their poses are a placeholder (a
+// capture recorded without --rig has identity poses) or a copied entry; farther apart, they are
+// a rig, however close.
+TEST(RigPoses, CamerasWithinACentimetreAndADegreeShareAPose) {
+  Rig rig;
+  for (int c = 0; c < 3; ++c) rig.cameras.push_back({.name = "cam" + std::to_string(c)});
+  rig.cameras[1].world_from_depth.translation() = Eigen::Vector3d(1, 0, 0);
+  rig.cameras[2].world_from_depth.translation() = Eigen::Vector3d(0, 1, 0);
+  EXPECT_FALSE(cameras_sharing_a_pose(rig));
+  EXPECT_EQ(shared_pose_problem(rig), "");
+  EXPECT_NO_THROW(check_poses_distinct(rig, "rig.json"));
+
+  const auto turned = [](double degrees) { return Rigid3d(Eigen::AngleAxisd(degrees * std::numbers::pi / 180, Eigen::Vector3d(1, 2, 3).normalized())); };
+  rig.cameras[2].world_from_depth = rig.cameras[1].world_from_depth * turned(0.9);
+  rig.cameras[2].world_from_depth.translation() += Eigen::Vector3d(0.005, 0.005, -0.005);  // 8.7 mm
+  EXPECT_EQ(cameras_sharing_a_pose(rig), (std::pair{1, 2}));
+  EXPECT_EQ(shared_pose_problem(rig).rfind("cameras[2].world_from_depth: the pose of cameras[1] (\"cam1\" and \"cam2\"", 0), 0u);
+  try {
+    check_poses_distinct(rig, "x/rig.json");
+    ADD_FAILURE() << "no error";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("x/rig.json: cameras[2].world_from_depth: ", 0), 0u) << e.what();
+  }
+  // 1.1° or 1.1 cm apart: two cameras side by side.
+  rig.cameras[2].world_from_depth = rig.cameras[1].world_from_depth * turned(1.1);
+  EXPECT_FALSE(cameras_sharing_a_pose(rig));
+  rig.cameras[2].world_from_depth = rig.cameras[1].world_from_depth;
+  rig.cameras[2].world_from_depth.translation() += Eigen::Vector3d(0, 0.011, 0);
+  EXPECT_FALSE(cameras_sharing_a_pose(rig));
+  // Every camera at identity, as record writes without --rig: the first two.
+  for (CameraModel& camera : rig.cameras) camera.world_from_depth = Rigid3d::Identity();
+  EXPECT_EQ(cameras_sharing_a_pose(rig), (std::pair{0, 1}));
 }
 
 }  // namespace
