@@ -274,7 +274,7 @@ void run_bench(const BenchArgs& args) {
   report["soak"] = soak;
 
   if (args.json) {
-    std::cout << report.dump(2) << "\n";
+    std::cout << json_text(report, 2) << "\n";
     return;
   }
   std::printf("%s, %d hardware threads\n%s: %d cameras, depth %s, %d frame sets x %d passes; decode %.1f ms median (%.1f p95) per frame set\n\n",

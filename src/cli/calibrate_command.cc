@@ -158,7 +158,7 @@ void run_intrinsics(const IntrinsicsArgs& args) {
                               {"views", views},
                               {"rejected", result.rejected},
                               {"duplicates", result.duplicates}};
-  write_file_atomic(args.out, out.dump(2) + "\n");
+  write_file_atomic(args.out, json_text(out, 2) + "\n");
   std::cout << "wrote " << args.out << "\n";
 }
 

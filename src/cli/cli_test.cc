@@ -319,6 +319,101 @@ TEST_F(Cli, EarlierMeshesThatWouldStayAreRefused) {
   EXPECT_EQ(fs::last_write_time(out / "000000.ply"), written_at);  // the refused runs wrote nothing
 }
 
+// A run that fails part-way leaves the output folder as it was: none (a new one) or an earlier
+// run's meshes and stats.json, untouched. Here frame 2 of camera 1 is of another size than
+// rig.json's, an error found only when that frame is decoded, after frames 0 and 1 are made.
+TEST_F(Cli, ARunThatFailsPartWayLeavesTheOutputAsItWas) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 3 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path out = dir_ / "out", earlier = dir_ / "earlier";
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --threads 1 --out " + earlier.string()).exit_code, 0);
+  const auto stats_written_at = fs::last_write_time(earlier / "stats.json");
+  const auto mesh_written_at = fs::last_write_time(earlier / "000000.ply");
+  write_depth_png(capture / "cam1" / "depth" / "000002.png", DepthImage(80, 60, 1500));
+  for (const fs::path& folder : {out, earlier}) {
+    const CommandResult r = run("reconstruct " + capture.string() + " --threads 1 --out " + folder.string());
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("cam1/depth/000002.png: size 80x60 does not match"), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_EQ(fs::last_write_time(earlier / "stats.json"), stats_written_at);
+  EXPECT_EQ(fs::last_write_time(earlier / "000000.ply"), mesh_written_at);
+  int entries = 0;
+  for ([[maybe_unused]] const auto& entry : fs::directory_iterator(earlier)) ++entries;
+  EXPECT_EQ(entries, 4) << "three meshes and stats.json, no staging folder left";
+  // What stands where a mesh would go and cannot be replaced by it is found before the work.
+  fs::create_directories(out / "000001.ply");
+  const CommandResult r = run("reconstruct " + capture.string() + " --frames 0:2 --out " + out.string());
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_EQ(r.err, "zipfusion: error: " + (out / "000001.ply").string() +
+                       ": is not a file, so this run's file of that name cannot replace it; remove it or choose another --out\n");
+}
+
+// Two runs cannot write into one folder at once (their meshes and stats.json would mix): the
+// second is refused while the first holds it.
+TEST_F(Cli, ASecondRunIntoAFolderInUseIsRefused) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path out = dir_ / "out";
+  const StagedFolder first(out, "--out");  // a run in progress
+  const CommandResult r = run("reconstruct " + capture.string() + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: " + out.string() + ": another zipfusion run is writing into this folder (choose another --out or wait for it)\n");
+  EXPECT_FALSE(fs::exists(out / "000000.ply"));
+}
+
+// Ctrl-C (SIGINT) during a capture's reconstruction keeps the meshes made, each whole, with a
+// stats.json that lists them and says the run was interrupted; the exit status is 130.
+TEST_F(Cli, AnInterruptedRunKeepsWholeMeshesAndSaysSo) {
+  const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
+  const fs::path out = dir_ / "out";
+  // The signal goes once the first mesh is in the staging folder (the handler is in place by then).
+  const std::string script = std::string(ZF_BINARY) + " reconstruct " + samba.string() + " --register off --out " + out.string() +
+                             " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() +
+                             " & p=$!; for i in $(seq 1000); do ls " + out.string() +
+                             "/.zipfusion-staging-*/000000.ply > /dev/null 2>&1 && break; sleep 0.01; done; kill -INT $p; wait $p; echo $? > " +
+                             (dir_ / "status").string();
+  ASSERT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
+  std::ifstream status_file(dir_ / "status");
+  int status = -1;
+  status_file >> status;
+  std::ifstream err_file(dir_ / "stderr");
+  const std::string err((std::istreambuf_iterator<char>(err_file)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(status, 130) << err;
+  EXPECT_EQ(err.rfind("reconstruct: stopped by a signal after ", 0), 0u) << err;
+  std::ifstream stats_file(out / "stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(stats_file);
+  EXPECT_TRUE(stats["interrupted"].get<bool>());
+  const size_t made = stats["frames"].size();
+  EXPECT_GE(made, 1u);
+  EXPECT_LT(made, 40u);
+  size_t meshes = 0;
+  for (const auto& entry : fs::directory_iterator(out)) {
+    if (entry.path().extension() != ".ply") continue;
+    ++meshes;
+    EXPECT_GT(read_mesh(entry.path()).triangle_count(), 10000u) << entry.path();  // whole: it reads
+  }
+  EXPECT_EQ(meshes, made);
+  EXPECT_NE(err.find(" of 40 frame sets; wrote them to "), std::string::npos) << err;
+}
+
+// A capture or output folder whose name is not UTF-8 (Linux allows any bytes) is written, its
+// stray bytes as U+FFFD in stats.json.
+TEST_F(Cli, PathsThatAreNotUtf8AreWritten) {
+  const fs::path capture = dir_ / "cap\xe9";
+  ASSERT_EQ(run("synth --out '" + capture.string() + "' --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path out = dir_ / "out\xff";
+  const CommandResult r = run("reconstruct '" + capture.string() + "' --threads 1 --out '" + out.string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream stats_file(out / "stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(stats_file);
+  EXPECT_EQ(stats["capture"].get<std::string>(), (dir_ / "cap\xef\xbf\xbd").string());
+  const CommandResult info = run("info --json '" + capture.string() + "'");
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_EQ(nlohmann::json::parse(info.out)["capture"].get<std::string>(), (dir_ / "cap\xef\xbf\xbd").string());
+}
+
 // Outputs never land among the capture's own files: meshes written into its ground truth would
 // replace the true ones (and every later eval of the capture would score 0 mm, 100 %), a rig
 // written there the true poses. A link does not hide where the output goes. Nothing is written.

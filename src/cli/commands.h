@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 
 namespace zipfusion::cli {
@@ -35,6 +36,20 @@ inline const CLI::Validator kFiniteNumber(
       return std::isfinite(value) ? std::string() : "must be a finite number, got " + text;
     },
     "FINITE");
+
+//! A run stopped by SIGINT or SIGTERM after it kept what it had made: the message says what.
+//! The process exits 130, as a shell reports a process ended by Ctrl-C.
+struct Interrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+inline constexpr int kInterruptedExitCode = 130;
+
+//! JSON text for output: a path that is not UTF-8 (Linux allows any bytes in a name) has its
+//! stray bytes written as U+FFFD instead of making nlohmann::json throw.
+template <typename Json>
+std::string json_text(const Json& j, int indent = -1) {
+  return j.dump(indent, ' ', false, Json::error_handler_t::replace);
+}
 
 //! Progress on standard error, only when it is a terminal: "label: done/total", redrawn in place
 //! until done reaches total.

@@ -195,7 +195,7 @@ void run_eval(EvalArgs& args) {
                    {"doubled_triangles", number(mean.doubled_triangles)},
                    {"color_error", number(mean.color_error)}};
     out["missing_frames"] = missing;
-    std::cout << out.dump(2) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
 

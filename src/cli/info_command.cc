@@ -151,7 +151,7 @@ void run_info(const InfoArgs& args) {
   }
 
   if (args.json) {
-    std::cout << out.dump(2) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
   std::cout << "capture      " << args.capture << "\n";

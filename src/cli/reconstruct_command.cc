@@ -10,6 +10,7 @@
 
 #include "cli/commands.h"
 #include "cli/frame_input.h"
+#include "cli/live_devices.h"
 #include "cli/reconstruction_setup.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/stopwatch.h"
@@ -38,15 +39,20 @@ double median_of(std::vector<double> values) {
   return values[values.size() / 2];
 }
 
-void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, const fs::path& out_dir);
+void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, StagedFolder& out);
 
 // eval reads every NNNNNN.ply or .obj of a folder: a mesh of an earlier run that this one would
 // not replace (another frame, or the other format) would be measured with this run's. `range`:
-// the frames this run writes (empty for live input, whose frames are not known in advance).
+// the frames this run writes (empty for live input, whose frames are not known in advance). What
+// stands where this run's files go must be a file it can replace, found now, not after the work.
 void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extension, const FrameRange& range) {
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(out_dir, ec)) {
+    const bool ours = entry.path().filename() == "stats.json" || entry.path().extension() == extension;
     const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
+    if (ours && (frame >= 0 || entry.path().filename() == "stats.json") && !entry.is_regular_file(ec)) {
+      throw IoError(entry.path().string() + ": is not a file, so this run's file of that name cannot replace it; remove it or choose another --out");
+    }
     if (frame < 0 || (entry.path().extension() == extension && frame >= range.begin && frame < range.end)) continue;
     throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would measure both runs, or refuse a frame with both formats); "
                        "choose an empty --out or remove it");
@@ -61,29 +67,33 @@ void run_reconstruct(ReconstructArgs& args) {
   open_input(args.input, r.rig, r.register_mode, "reconstruct", in);
 
   // The output folder is checked before the reconstruction is set up (--register once registers
-  // the rig first, which takes seconds).
+  // the rig first, which takes seconds). The meshes and stats.json go into a staging folder and
+  // appear together when the run ends: a run that fails part-way (a frame of the wrong size, a
+  // full disk) leaves the folder as it was, and a second run into it is refused meanwhile.
   const fs::path out_dir = output_folder(args.out);  // "out/." could not be removed on failure; a link's folder is made where it points
   if (in.capture) in.capture->check_output_outside(out_dir, "--out");
-  std::error_code ec;
-  const bool out_dir_is_new = !fs::exists(out_dir, ec);
-  if (!out_dir_is_new) check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
-  fs::create_directories(out_dir, ec);
-  if (!fs::is_directory(out_dir, ec)) throw IoError(out_dir.string() + ": cannot create output folder");
-  try {
-    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
-    write_reconstruction(args, in, reconstruction, out_dir);
-  } catch (...) {
-    // A run that fails before writing anything (no depth of the capture decodes, a frame file
-    // that is a loop of links) leaves no empty folder.
-    if (out_dir_is_new && fs::is_empty(out_dir, ec)) fs::remove(out_dir, ec);
-    throw;
-  }
+  StagedFolder out(out_dir, "--out");
+  check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+  write_reconstruction(args, in, reconstruction, out);
 }
 
-// Reconstructs every frame set of `in` into out_dir (NNNNNN.ply or .obj) and writes stats.json.
-void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, const fs::path& out_dir) {
+// Reconstructs every frame set of `in` into `out` (NNNNNN.ply or .obj) and writes stats.json. A
+// capture's run stopped by SIGINT or SIGTERM keeps the frames it made, says so in stats.json and
+// throws Interrupted.
+void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, StagedFolder& out) {
   ReconstructionArgs& r = args.reconstruction;
   const FrameRange& range = in.range;
+  const fs::path& staging = out.staging();
+  const fs::path& out_dir = out.dir();
+  if (!in.live) {
+    // Live input stops on the signal by itself (its sources watch the flag).
+    install_stop_on_signal();
+    in.source = [source = std::move(in.source)](double& decode_ms) -> std::optional<FrameSet> {
+      if (stop_requested()) return std::nullopt;
+      return source(decode_ms);
+    };
+  }
 
   nlohmann::ordered_json frames = nlohmann::json::array();
   std::vector<double> totals;
@@ -97,7 +107,7 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
     remove_unreferenced_vertices(frame.result.mesh, remap);
     const FrameResult& result = frame.result;
     // Every frame's file has colours, an empty one (no camera in its frame set) too.
-    write_mesh(out_dir / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
+    write_mesh(staging / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
     const double write_ms = ms_since(write_start);
     const StageTimes& t = result.times;
     totals.push_back(t.total_ms);
@@ -143,7 +153,15 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   stats["median_total_ms"] = median_of(totals);
   stats["wall_ms"] = pipeline.wall_ms;
   if (!in.live) stats["unreadable_file_count"] = in.unreadable_count();
-  write_file_atomic(out_dir / "stats.json", stats.dump(2) + "\n");
+  const int wanted = range.end - range.begin;
+  const bool interrupted = !in.live && static_cast<int>(frames.size()) < wanted && stop_requested();
+  if (interrupted) stats["interrupted"] = true;
+  write_file_atomic(staging / "stats.json", json_text(stats, 2) + "\n");
+  out.commit("stats.json");
+  if (interrupted) {
+    throw Interrupted("reconstruct: stopped by a signal after " + std::to_string(frames.size()) + " of " + std::to_string(wanted) +
+                      " frame sets; wrote them to " + out_dir.string() + " with stats.json (\"interrupted\": true)");
+  }
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
   if (const int unreadable = in.unreadable_count(); unreadable > 0) {

@@ -76,7 +76,7 @@ std::string hello_json(const Rig& rig, const ServeArgs& args, const Quantization
     hello["volume"] = {{"min", {rig.volume->min.x(), rig.volume->min.y(), rig.volume->min.z()}},
                        {"max", {rig.volume->max.x(), rig.volume->max.y(), rig.volume->max.z()}}};
   }
-  return hello.dump();
+  return json_text(hello);
 }
 
 // Frame sets at the capture's frame rate, like a live camera: frame i is handed over at

@@ -90,6 +90,9 @@ int main(int argc, char** argv) {
     if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
     std::cerr << "zipfusion: error: " << e.what() << " (see --help)\n";
     return 2;
+  } catch (const zipfusion::cli::Interrupted& e) {
+    zipfusion::cli::print_error(e.what());
+    return zipfusion::cli::kInterruptedExitCode;
   } catch (const zipfusion::InvalidInput& e) {
     zipfusion::cli::print_error(std::string("zipfusion: error: ") + e.what());
     return 2;

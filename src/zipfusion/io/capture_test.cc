@@ -215,6 +215,59 @@ TEST(WriteFolderAtomic, RemovesOnlyAbandonedStagingFolders) {
   fs::remove_all(dir);
 }
 
+std::string read_text(const fs::path& path) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+// A StagedFolder's files appear together at commit(), the one named last after the others
+// (not observed here), replacing files of the same names and leaving the rest; without commit() the folder is as it
+// was (a new one, and the parents made for it, gone). One run at a time holds the folder, and a
+// killed run's staging folder goes with the next run.
+TEST(StagedFolder, FilesAppearTogetherOrNotAtAll) {
+  const fs::path dir = fs::temp_directory_path() / ("zf_staged_folder_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  {
+    StagedFolder failed(dir / "a" / "out", "--out");
+    EXPECT_TRUE(failed.made_dir());
+    write_file_atomic(failed.staging() / "000000.ply", "new");
+  }
+  EXPECT_FALSE(fs::exists(dir / "a")) << "an uncommitted run leaves no folder it made";
+  const fs::path out = dir / "out";
+  fs::create_directories(out / ".zipfusion-staging-123" / "x");  // a killed run's
+  write_file_atomic(out / "000000.ply", "old 0");
+  write_file_atomic(out / "notes.txt", "kept");
+  {
+    StagedFolder run(out, "--out");
+    EXPECT_FALSE(run.made_dir());
+    EXPECT_FALSE(fs::exists(out / ".zipfusion-staging-123"));
+    EXPECT_EQ(run.staging().parent_path(), out);
+    // A second run, in this process or another, finds the folder held.
+    try {
+      StagedFolder second(out, "--out");
+      ADD_FAILURE() << "two runs held one folder";
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find("another zipfusion run is writing into this folder (choose another --out"), std::string::npos) << e.what();
+    }
+    write_file_atomic(run.staging() / "000000.ply", "new 0");
+    write_file_atomic(run.staging() / "000001.ply", "new 1");
+    EXPECT_EQ(read_text(out / "000000.ply"), "old 0") << "nothing appears before commit()";
+  }
+  EXPECT_EQ(read_text(out / "000000.ply"), "old 0") << "an uncommitted run replaces nothing";
+  EXPECT_FALSE(fs::exists(out / "000001.ply"));
+  StagedFolder run(out, "--out");
+  write_file_atomic(run.staging() / "stats.json", "{}");
+  write_file_atomic(run.staging() / "000000.ply", "new 0");
+  write_file_atomic(run.staging() / "000001.ply", "new 1");
+  run.commit("stats.json");
+  EXPECT_EQ(read_text(out / "000000.ply"), "new 0");
+  EXPECT_EQ(read_text(out / "000001.ply"), "new 1");
+  EXPECT_EQ(read_text(out / "notes.txt"), "kept");
+  EXPECT_EQ(read_text(out / "stats.json"), "{}");
+  EXPECT_FALSE(fs::exists(run.staging()));
+  fs::remove_all(dir);
+}
+
 // An output folder named through links is written where they end; the links stay links.
 TEST(WriteFolderAtomic, WritesThroughLinksAndKeepsThem) {
   const fs::path dir = fs::temp_directory_path() / "zf_write_folder_through_links";

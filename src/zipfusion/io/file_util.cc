@@ -251,4 +251,71 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
   }
 }
 
+namespace {
+
+// Every run's staging folder inside a StagedFolder's folder starts so.
+constexpr std::string_view kStagingPrefix = ".zipfusion-staging-";
+
+}  // namespace
+
+StagedFolder::StagedFolder(const std::filesystem::path& asked_for, std::string_view option) : dir_(output_folder(asked_for)) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  existing_ = nearest_existing(dir_);
+  made_dir_ = !fs::exists(dir_, ec);
+  if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec)) throw IoError(dir_.string() + ": is a file, not a folder (choose another " + std::string(option) + ")");
+  fs::create_directories(dir_, ec);
+  if (!fs::is_directory(dir_, ec)) {
+    throw IoError(dir_.string() + ": cannot create output folder" + (ec ? " (" + ec.message() + ")" : std::string()));
+  }
+  lock_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (lock_fd_ < 0) throw IoError(dir_.string() + ": cannot open the output folder (" + std::strerror(errno) + ")");
+  if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    throw InvalidInput(dir_.string() + ": another zipfusion run is writing into this folder (choose another " + std::string(option) + " or wait for it)");
+  }
+  // Holding the lock, every staging folder here is a killed run's.
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir_, ec)) {
+    if (entry.path().filename().string().starts_with(kStagingPrefix)) fs::remove_all(entry.path(), ec);
+  }
+  staging_ = dir_ / (std::string(kStagingPrefix) + std::to_string(::getpid()));
+  if (!fs::create_directory(staging_, ec)) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    if (made_dir_) fs::remove(dir_, ec);
+    throw IoError(staging_.string() + ": cannot create (" + (ec ? ec.message() : std::string("exists")) + ")");
+  }
+}
+
+StagedFolder::~StagedFolder() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!committed_) {
+    fs::remove_all(staging_, ec);
+    if (made_dir_) {
+      for (fs::path p = dir_; !p.empty() && p != existing_; p = p.parent_path()) {
+        if (!fs::remove(p, ec)) break;  // remove() takes only an empty folder
+      }
+    }
+  }
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+void StagedFolder::commit(const std::string& last) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (const fs::directory_entry& entry : fs::directory_iterator(staging_, ec)) files.push_back(entry.path().filename());
+  if (ec) throw IoError(staging_.string() + ": cannot list (" + ec.message() + ")");
+  std::sort(files.begin(), files.end());
+  std::stable_partition(files.begin(), files.end(), [&](const fs::path& name) { return name.string() != last; });
+  for (const fs::path& name : files) {
+    fs::rename(staging_ / name, dir_ / name, ec);
+    if (ec) throw IoError((dir_ / name).string() + ": cannot write (" + ec.message() + ")");
+  }
+  committed_ = true;
+  fs::remove(staging_, ec);
+}
+
 }  // namespace zipfusion

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -46,5 +47,37 @@ void check_new_folder(const std::filesystem::path& dir, std::string_view option)
 //! removed and the error rethrown (a filesystem error as IoError naming the path). Staging folders
 //! of earlier runs whose process is gone (killed) are removed first.
 void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill);
+
+//! Files that appear in a folder together, or not at all: a run writes them into staging(), a
+//! hidden folder inside it, and commit() moves them in, replacing files of the same names. A run
+//! that fails, or that ends without commit(), leaves the folder as it found it. The folder is
+//! locked meanwhile (flock: visible to every process, dropped by the kernel when the process
+//! dies), so two runs cannot mix their files.
+class StagedFolder {
+ public:
+  //! Makes `dir` (a link followed, as output_folder does) and its parents where missing, and locks
+  //! it. Throws InvalidInput when another run holds it (`option` names the command-line option
+  //! that chose it) and IoError when it cannot be made. The staging folders of killed runs are
+  //! removed (the lock says their run is gone).
+  StagedFolder(const std::filesystem::path& dir, std::string_view option);
+  //! Without commit(): removes the staging folder, then `dir` and the parents this made if empty.
+  ~StagedFolder();
+  StagedFolder(const StagedFolder&) = delete;
+  StagedFolder& operator=(const StagedFolder&) = delete;
+
+  const std::filesystem::path& dir() const { return dir_; }
+  const std::filesystem::path& staging() const { return staging_; }
+  bool made_dir() const { return made_dir_; }
+
+  //! Moves every file of staging() into dir(), the one named `last` after all others (so that it
+  //! appearing means the rest are there), then removes staging(). Throws IoError naming the file.
+  void commit(const std::string& last = {});
+
+ private:
+  std::filesystem::path dir_, staging_, existing_;  // existing_: the nearest folder above dir_ that existed
+  bool made_dir_ = false;
+  bool committed_ = false;
+  int lock_fd_ = -1;
+};
 
 }  // namespace zipfusion
