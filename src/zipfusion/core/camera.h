@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 namespace zipfusion {
 
@@ -58,6 +60,31 @@ inline double distortion_fold_share(const Intrinsics& k) {
     if (slope <= 0) return static_cast<double>(i) / kSteps;
   }
   return 0;
+}
+
+//! How far distortion moves the points of the image, at most: the smallest and the largest ratio
+//! |distort(p)| / |p| over a grid of normalised points p spanning the image (to its farthest
+//! corner from the principal point each way). A lens moves a point by a few per cent of its
+//! distance from the centre, a wide one by a few tens; coefficients that scale distances by
+//! several times (1e9 typed for 1e-9) would squeeze the camera's whole image into a few pixels of
+//! the undistorted one, and its surface would silently vanish.
+inline std::pair<double, double> distortion_stretch_range(const Intrinsics& k) {
+  const double left = (k.cx + 0.5) / k.fx, right = (k.width - 0.5 - k.cx) / k.fx;
+  const double top = (k.cy + 0.5) / k.fy, bottom = (k.height - 0.5 - k.cy) / k.fy;
+  constexpr int kSteps = 32;
+  double least = 1, most = 1;
+  for (int i = 0; i <= kSteps; ++i) {
+    for (int j = 0; j <= kSteps; ++j) {
+      const Eigen::Vector2d p(-left + (left + right) * i / kSteps, -top + (top + bottom) * j / kSteps);
+      const double r = p.norm();
+      if (r < 1e-9) continue;
+      const double ratio = distort(k, p).norm() / r;
+      if (!std::isfinite(ratio)) return {least, std::numeric_limits<double>::infinity()};  // overflowed
+      least = std::min(least, ratio);
+      most = std::max(most, ratio);
+    }
+  }
+  return {least, most};
 }
 
 //! Pixel of a point in the camera frame. Precondition: p.z() > 0. Distortion applied when present.

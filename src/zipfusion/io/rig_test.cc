@@ -158,6 +158,14 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
        "cameras[0].color_intrinsics.distortion: must be an array of 5 numbers"},
       {"folding distortion", [](json& j) { j["cameras"][1]["depth_intrinsics"]["distortion"] = {-1.5, 0, 0, 0, 0}; },
        "cameras[1].depth_intrinsics.distortion: folds back inside the image"},
+      // Growing all the way, yet scaling the image's distances by far more than a lens does: the
+      // camera's whole image would shrink to a few undistorted pixels.
+      {"stretching distortion", [](json& j) { j["cameras"][1]["depth_intrinsics"]["distortion"] = {1e9, 1e9, 0, 0, 1e9}; },
+       "cameras[1].depth_intrinsics.distortion: moves points of the image to 1–"},
+      {"overflowing distortion", [](json& j) { j["cameras"][0]["color_intrinsics"]["distortion"] = {0, 0, 1e308, -1e308, 0}; },
+       "cameras[0].color_intrinsics.distortion: moves points of the image to "},
+      {"squeezing tangential distortion", [](json& j) { j["cameras"][0]["depth_intrinsics"]["distortion"] = {0, 0, 3, 0, 0}; },
+       "cameras[0].depth_intrinsics.distortion: moves points of the image to "},
       {"colour pose without intrinsics", [](json& j) { j["cameras"][0].erase("color_intrinsics"); },
        "cameras[0].color_intrinsics: missing: color_intrinsics and color_from_depth come together"},
       {"scaled pose", [](json& j) { j["cameras"][0]["world_from_depth"][0][0] = 2.0; }, "cameras[0].world_from_depth: is not a rigid transform"},
