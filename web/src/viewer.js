@@ -243,6 +243,9 @@ function connect() {
     retryAt = 0;
     socket.send(JSON.stringify({ type: 'flow', window: flowWindow }));
     document.body.dataset.flowWindow = String(flowWindow);
+    // A new connection starts playing: a paused viewer says so again, or the server sends it
+    // every frame (which it would acknowledge unread).
+    if (paused) socket.send(JSON.stringify({ type: 'pause' }));
   };
   socket.onclose = (event) => {
     $('status').textContent = `disconnected (${event.code}${event.reason ? `: ${event.reason}` : ''}); retrying…`;

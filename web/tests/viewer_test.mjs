@@ -29,8 +29,8 @@ const synth = spawnSync(zipfusion, ['synth', '--out', capture, '--frames', '12',
 if (synth.status !== 0) throw new Error(`synth failed: ${synth.stderr}`);
 
 // Starts `zipfusion serve` on a free port; resolves with its URL once it listens.
-function serve(extra) {
-  const child = spawn(zipfusion, ['serve', capture, '--loop', '--port', '0', '--web', web, ...extra], { stdio: ['ignore', 'pipe', 'pipe'] });
+function serve(extra, port = '0') {
+  const child = spawn(zipfusion, ['serve', capture, '--loop', '--port', port, '--web', web, ...extra], { stdio: ['ignore', 'pipe', 'pipe'] });
   return new Promise((resolve, reject) => {
     let out = '';
     const timer = setTimeout(() => reject(new Error(`serve did not start: ${out}`)), 20000);
@@ -122,6 +122,19 @@ try {
   const pausedAt = Number(await page.evaluate(() => document.body.dataset.frames));
   await page.waitForTimeout(1000);
   check(Number(await page.evaluate(() => document.body.dataset.frames)) === pausedAt, 'pause stops the drawing');
+  // A paused viewer stays paused when it reconnects: the server restarts on the same port, and
+  // no frames come (the overlay's bitrate is of the last second's bytes).
+  const port = new URL(plain.url).port;
+  const stopped = new Promise((resolve) => plain.child.once('exit', resolve));
+  plain.child.kill('SIGINT');
+  await stopped;
+  const restarted = await serve([], port);
+  servers.push(restarted.child);
+  await page.waitForFunction(() => document.querySelector('#status').textContent.includes('cameras'), null, { timeout: 20000 });
+  await page.waitForTimeout(2500);
+  const bitrate = await page.textContent('#bitrate');
+  check(/^0\.0 Mbit\/s/.test(bitrate), `a paused viewer that reconnects receives no frames (${bitrate})`);
+  check(Number(await page.evaluate(() => document.body.dataset.frames)) === pausedAt, 'and draws none');
   check(errors.length === 0, `no script errors (${errors.join('; ')})`);
 
   // With a token: refused without it, served with it.
