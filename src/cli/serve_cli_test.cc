@@ -73,6 +73,12 @@ TEST_F(ServeCli, StreamsAtTheCaptureFrameRateForTheTimeAsked) {
   ASSERT_EQ(once.exit_code, 0) << once.err;
   ASSERT_TRUE(std::regex_search(once.out, served, kServedLine)) << once.out;
   EXPECT_EQ(std::stoi(served[1]) + std::stoi(served[2]) + std::stoi(served[3]), 6) << once.out;
+  // Bound to every interface, the URL names this machine, which others can open (not 0.0.0.0).
+  const CommandResult everywhere = run("serve " + capture + " --bind 0.0.0.0 --port 0 --frames 0:1");
+  ASSERT_EQ(everywhere.exit_code, 0) << everywhere.err;
+  char host[256] = {};
+  ASSERT_EQ(::gethostname(host, sizeof host - 1), 0);
+  EXPECT_NE(everywhere.out.find("serving http://" + std::string(host) + ":"), std::string::npos) << everywhere.out;
 }
 
 // A viewer slower than the stream (it acknowledges each frame 150 ms after it arrives, with one

@@ -120,6 +120,9 @@ struct StreamServer::Impl {
   std::thread thread;
   std::atomic<long> clients_total{0}, refused{0}, closed_bad_message{0}, frames_broadcast{0}, frames_sent{0}, frames_skipped{0}, bytes_sent{0};
   std::atomic<int> clients{0};
+  // WebSocket handshakes under way (network thread only): they count against kMaxClients too, or
+  // upgrades arriving together would all pass the check before any became a client.
+  int handshaking = 0;
   // Frames a client could be sent at once, the most over the clients (see Session::room), and
   // frames reserved for it (reserve_frame) that broadcast() has not handed on yet.
   std::atomic<int> most_room{0}, frames_reserved{0};
@@ -139,7 +142,9 @@ struct Session : std::enable_shared_from_this<Session> {
   void start(http::request<http::string_body> request) {
     ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     ws.read_message_max(static_cast<std::uint64_t>(server.options.max_client_message_bytes));
+    ++server.handshaking;
     ws.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
+      --self->server.handshaking;
       if (ec) return;
       self->server.sessions.insert(self);
       self->server.update_room();
@@ -301,16 +306,23 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
     parser->body_limit(8 * 1024);
     stream.expires_after(std::chrono::seconds(30));
     http::async_read(stream, buffer, *parser, [self = shared_from_this()](beast::error_code ec, size_t) {
-      if (ec) return;
-      self->respond(self->parser->release());
+      if (!ec) return self->respond(self->parser->release());
+      // A request that is not HTTP, or too large, gets the reason before the connection closes;
+      // a client that went away or stayed silent (end of stream, timeout) gets nothing.
+      if (ec.category() != http::make_error_code(http::error::bad_method).category() || ec == http::error::end_of_stream) return;
+      http::request<http::string_body> unread;  // HTTP/1.1, for the reply's version
+      if (ec == http::error::header_limit) return self->send(self->text_response(unread, http::status::request_header_fields_too_large, "request header too large"));
+      if (ec == http::error::body_limit) return self->send(self->text_response(unread, http::status::payload_too_large, "request body too large"));
+      self->send(self->text_response(unread, http::status::bad_request, "not an HTTP request: " + ec.message()));
     });
   }
 
   void respond(http::request<http::string_body> request) {
     const std::string target(request.target());
     if (target.empty() || target.front() != '/') return send(text_response(request, http::status::bad_request, "bad request target"));
+    if (request[http::field::host].empty()) return send(text_response(request, http::status::bad_request, "a Host header is required"));
     if (!server.same_origin(request)) return send(text_response(request, http::status::forbidden, "another site's page may not use this stream"));
-    if (server.clients >= kMaxClients && websocket::is_upgrade(request)) {
+    if (server.clients + server.handshaking >= kMaxClients && websocket::is_upgrade(request)) {
       return send(text_response(request, http::status::service_unavailable, "too many viewers"));
     }
     const size_t question = target.find('?');

@@ -115,6 +115,31 @@ TEST(StreamServerUrl, IPv6HostsGoInBracketsWithTheirZoneEscaped) {
   EXPECT_EQ(url_host("fe80::1%eth0"), "[fe80::1%25eth0]");
 }
 
+// At most 64 viewers, also when their upgrades arrive together: handshakes under way count.
+TEST_F(StreamServerTest, UpgradesArrivingTogetherStayWithinTheClientLimit) {
+  StreamServer server({.port = 0}, "{}");
+  net::io_context io;
+  std::vector<std::unique_ptr<tcp::socket>> sockets;
+  const std::string upgrade =
+      "GET /stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+  for (int i = 0; i < 150; ++i) {
+    sockets.push_back(std::make_unique<tcp::socket>(io));
+    sockets.back()->connect({net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(server.port())});
+  }
+  for (auto& socket : sockets) net::write(*socket, net::buffer(upgrade));
+  int switched = 0, refused = 0;
+  for (auto& socket : sockets) {
+    std::string reply(64, '\0');
+    beast::error_code ec;
+    reply.resize(socket->read_some(net::buffer(reply), ec));
+    if (reply.starts_with("HTTP/1.1 101")) ++switched;
+    if (reply.starts_with("HTTP/1.1 503")) ++refused;
+  }
+  EXPECT_EQ(switched, 64);
+  EXPECT_EQ(refused, 150 - 64);
+}
+
 TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   StreamServer server({.port = 0, .web_root = dir_}, R"({"format":"zipfusion.stream/1"})");
   ASSERT_GT(server.port(), 0);
@@ -133,6 +158,14 @@ TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   // A DNS name that merely starts like a loopback address is a name, not the loopback.
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.attacker.example:8080\r\n\r\n"), "HTTP/1.1 403 Forbidden");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.1.2.3\r\n\r\n"), "HTTP/1.1 200 OK");
+  // Without a Host, not HTTP, too large: a status that says so, not a silent close.
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.0\r\n\r\n"), "HTTP/1.0 400 Bad Request");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\n\r\n"), "HTTP/1.1 400 Bad Request");
+  EXPECT_EQ(raw_request(server.port(), std::string("\x00\x01garbage\r\n\r\n", 13)), "HTTP/1.1 400 Bad Request");
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + std::string(9000, 'a') + "\r\n\r\n"),
+            "HTTP/1.1 431 Request Header Fields Too Large");
+  EXPECT_EQ(raw_request(server.port(), "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 9000\r\n\r\n" + std::string(9000, 'a')),
+            "HTTP/1.1 413 Payload Too Large");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: [::1]:8080\r\n\r\n"), "HTTP/1.1 200 OK");
   EXPECT_EQ(http_get(server.port(), "/").status, 200);
   Client client(server.port());
