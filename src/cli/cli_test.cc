@@ -68,6 +68,9 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"info " + (dir_ / "nowhere").string(), "nowhere: not a capture folder", 3},
       {"info " + broken, "rig.json: cameras[0].depth_intrinsics.fx: must be positive"},
       {"synth --out " + capture, "already exists and is not empty"},
+      // A whole number is asked for by name, not as a range "abc" is out of.
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --threads abc", "zipfusion: error: --threads: must be a whole number, got abc"},
+      {"info " + capture + " --sample 1.5", "zipfusion: error: --sample: must be a whole number, got 1.5"},
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "zipfusion: error: --cameras: must be in [1, 64]"},
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 0", "zipfusion: error: --views: must be in [1, 10000]"},

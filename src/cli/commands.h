@@ -18,10 +18,23 @@ void add_calibrate_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
 void add_record_command(CLI::App& app);
 
+//! A whole number, said so before a range is tested ("abc" or "1.5" is not "out of range").
+inline const CLI::Validator kWholeNumber(
+    [](std::string& text) -> std::string {
+      size_t used = 0;
+      try {
+        std::stoll(text, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      return used > 0 && used == text.size() ? std::string() : "must be a whole number, got " + text;
+    },
+    "INT");
+
 //! The --threads option every subcommand has: 0 (all cores) to kMostThreads.
 inline constexpr int kMostThreads = 1024;
 inline CLI::Option* add_threads_option(CLI::App* cmd, int& threads, const std::string& what = "Worker threads (0 = all cores)") {
-  return cmd->add_option("--threads", threads, what)->check(CLI::Range(0, kMostThreads))->capture_default_str();
+  return cmd->add_option("--threads", threads, what)->check(kWholeNumber)->check(CLI::Range(0, kMostThreads))->capture_default_str();
 }
 
 //! A number that is finite: CLI11's Range lets NaN through (every comparison with it is false).

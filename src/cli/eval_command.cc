@@ -253,7 +253,7 @@ void add_eval_command(CLI::App& app) {
       ->check(kFiniteNumber & CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--min-component-triangles", o.min_component_triangles, "Components with at least this many triangles count as large")
-      ->check(CLI::Range(1, 1 << 30))
+      ->check(kWholeNumber)->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   cmd->add_option("--min-range", o.min_range_m, "Cameras observe from this depth, metres")->check(kFiniteNumber & CLI::Range(0.0, 100.0))->capture_default_str();
   cmd->add_option("--max-range", o.max_range_m, "... to this depth, metres")->check(kFiniteNumber & CLI::Range(0.0, 100.0))->capture_default_str();

@@ -215,7 +215,7 @@ void add_info_command(CLI::App& app) {
   auto args = std::make_shared<InfoArgs>();
   CLI::App* cmd = app.add_subcommand("info", "Describe a capture: its rig and statistics of its frames");
   cmd->add_option("capture", args->capture, "Capture folder (with rig.json)")->required();
-  cmd->add_option("--sample", args->sample, "Examine only this many evenly spaced frames (0 = all)")->check(CLI::Range(0, 1 << 30))->capture_default_str();
+  cmd->add_option("--sample", args->sample, "Examine only this many evenly spaced frames (0 = all)")->check(kWholeNumber)->check(CLI::Range(0, 1 << 30))->capture_default_str();
   cmd->add_flag("--json", args->json, "Print JSON instead of tables");
   cmd->add_flag("--strict", args->strict, "Treat a missing or undecodable frame file as an error");
   cmd->callback([args] { run_info(*args); });

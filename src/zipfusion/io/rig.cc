@@ -1,7 +1,9 @@
 #include "zipfusion/io/rig.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -65,17 +67,19 @@ class Fields {
     std::snprintf(text, sizeof text, "%g", d);
     return text;
   }
-  int integer(const std::string& key, int min_value) const {
+  // An integer of at least min_value; the field's own upper limit (frames, image sizes) is its
+  // caller's to test and to explain. One past long long's range reads as its largest.
+  long long integer(const std::string& key, int min_value) const {
     const json& v = required(key);
     // 640.0 is 640: a writer that keeps sizes as floats (Python's w / 2) writes it so.
     const double as_float = v.is_number_float() ? v.get<double>() : 0;
     const bool integral_float = v.is_number_float() && std::isfinite(as_float) && as_float == std::floor(as_float) && std::abs(as_float) <= 1e15;
     if (!v.is_number_integer() && !integral_float) fail(field(key), "must be an integer, got " + quoted(v));
-    const long long i = integral_float ? static_cast<long long>(as_float) : v.get<long long>();
-    if (i < min_value || i > 1'000'000'000) {
-      fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + quoted(v));
-    }
-    return static_cast<int>(i);
+    const long long i = integral_float                                                                                  ? static_cast<long long>(as_float)
+                        : v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(LLONG_MAX) ? LLONG_MAX
+                                                                                                                     : v.get<long long>();
+    if (i < min_value) fail(field(key), "must be an integer >= " + std::to_string(min_value) + ", got " + quoted(v));
+    return i;
   }
   std::string string(const std::string& key) const {
     const json& v = required(key);
@@ -123,16 +127,17 @@ void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
 
 Intrinsics parse_intrinsics(const Fields& f) {
   Intrinsics k;
-  k.width = f.integer("width", 1);
-  k.height = f.integer("height", 1);
+  const long long width = f.integer("width", 1), height = f.integer("height", 1);
   // A size no camera has would only be found when the first frame is decoded, after what is
   // sized by it (a distortion map of every pixel) has been built.
-  if (!plausible_image_size(k.width, k.height)) {
-    const bool only_height_too_long = k.width <= static_cast<int>(kMostImageSide) && k.height > static_cast<int>(kMostImageSide);
-    f.fail(f.field(only_height_too_long ? "height" : "width"), std::to_string(k.width) + "x" + std::to_string(k.height) +
+  if (!plausible_image_size(static_cast<std::uint64_t>(width), static_cast<std::uint64_t>(height))) {
+    const bool only_height_too_long = width <= static_cast<long long>(kMostImageSide) && height > static_cast<long long>(kMostImageSide);
+    f.fail(f.field(only_height_too_long ? "height" : "width"), std::to_string(width) + "x" + std::to_string(height) +
                                                                 " is larger than any camera's image (at most " + std::to_string(kMostImageSide) +
                                                                 " pixels a side and 2^26 pixels)");
   }
+  k.width = static_cast<int>(width);
+  k.height = static_cast<int>(height);
   // Focal lengths from 0.02 to 100 times the image's size: fields of view from about 0.6 to 175
   // degrees, past any pinhole lens. The principal point within an image's size of the image.
   // Bounded by the larger side: a strip sensor (synth allows 4096×24) has one focal length for both.
@@ -226,11 +231,12 @@ Rig parse_rig(const std::string& json_text, const std::string& source) {
 
   Rig rig;
   rig.fps = top.plausible("fps", 0.001, 1000, "frames per second");
-  rig.frame_count = top.integer("frame_count", 0);
-  if (rig.frame_count > kMostFrames) {
+  const long long frame_count = top.integer("frame_count", 0);
+  if (frame_count > kMostFrames) {
     top.fail("frame_count", "must be at most " + std::to_string(kMostFrames) + " (frame files are numbered with six digits), got " +
-                                std::to_string(rig.frame_count));
+                                std::to_string(frame_count));
   }
+  rig.frame_count = static_cast<int>(frame_count);
   if (top.has("depth_unit_m")) rig.depth_unit_m = top.plausible("depth_unit_m", 1e-6, 1, "metres");
   if (top.has("poses_trusted")) {
     const json& trusted = top.required("poses_trusted");
