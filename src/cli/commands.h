@@ -24,6 +24,8 @@ inline const CLI::Validator kWholeNumber(
       size_t used = 0;
       try {
         std::stoll(text, &used);
+      } catch (const std::out_of_range&) {
+        return std::string();  // a whole number, too large: the range check says so
       } catch (const std::exception&) {
         used = 0;
       }
@@ -50,12 +52,12 @@ inline const CLI::Validator kFiniteNumber(
     },
     "FINITE");
 
-//! A run stopped by SIGINT or SIGTERM after it kept what it had made: the message says what.
-//! The process exits 130, as a shell reports a process ended by Ctrl-C.
+//! A run stopped by a signal after it kept what it had made: the message says what. The process
+//! exits 128 + the signal's number, as a shell reports a process the signal ended (130 for Ctrl-C).
 struct Interrupted : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  Interrupted(const std::string& what, int signal) : std::runtime_error(what), exit_code(128 + (signal > 0 ? signal : 2)) {}
+  int exit_code;
 };
-inline constexpr int kInterruptedExitCode = 130;
 
 //! JSON text for output: a path that is not UTF-8 (Linux allows any bytes in a name) has its
 //! stray bytes written as U+FFFD instead of making nlohmann::json throw.

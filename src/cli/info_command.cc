@@ -49,7 +49,6 @@ void run_info(const InfoArgs& args) {
   const Capture capture = Capture::open(args.capture, {.strict = args.strict});
   const Rig& rig = capture.rig();
   const int cameras = capture.camera_count();
-  if (args.strict) check_poses_distinct(rig, (capture.dir() / "rig.json").string());
 
   std::vector<int> frames;
   const int count = capture.frame_count();

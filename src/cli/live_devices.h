@@ -110,26 +110,36 @@ inline std::vector<std::unique_ptr<LiveCamera>> open_live_cameras(LiveDeviceArgs
   return open_kinect_cameras(args.devices, args.kinect);
 }
 
-//! Set by SIGINT/SIGTERM while installed; a second Ctrl-C ends the process as usual.
+//! Set by SIGINT, SIGTERM or SIGHUP (a closed terminal) while installed; a second one ends the
+//! process as usual.
 inline std::atomic<bool>& stop_requested() {
   static std::atomic<bool> flag{false};
   return flag;
 }
 
+//! The signal that set stop_requested(), 0 before one came.
+inline std::atomic<int>& stop_signal() {
+  static std::atomic<int> number{0};
+  return number;
+}
+
 //! Idempotent: a second call (serve installs it, then opens live cameras, which install it too)
-//! keeps a Ctrl-C that came in between.
+//! keeps a signal that came in between.
 inline void install_stop_on_signal() {
-  static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler stores to it");
+  static_assert(std::atomic<bool>::is_always_lock_free && std::atomic<int>::is_always_lock_free, "the signal handler stores to them");
   static bool installed = false;
   if (installed) return;
   installed = true;
-  stop_requested().store(false);  // also constructs the flag before any signal can arrive
+  stop_requested().store(false);  // also constructs the flags before any signal can arrive
+  stop_signal().store(0);
   struct sigaction action {};
-  action.sa_handler = [](int) { stop_requested().store(true); };
+  action.sa_handler = [](int number) {
+    stop_signal().store(number);
+    stop_requested().store(true);
+  };
   action.sa_flags = SA_RESETHAND;
   sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  for (const int number : {SIGINT, SIGTERM, SIGHUP}) sigaction(number, &action, nullptr);
 }
 
 }  // namespace zipfusion::cli

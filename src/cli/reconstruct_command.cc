@@ -50,8 +50,9 @@ void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extensi
   for (const fs::directory_entry& entry : fs::directory_iterator(out_dir, ec)) {
     const bool ours = entry.path().filename() == "stats.json" || entry.path().extension() == extension;
     const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
-    if (ours && (frame >= 0 || entry.path().filename() == "stats.json") && !entry.is_regular_file(ec)) {
-      throw IoError(entry.path().string() + ": is not a file, so this run's file of that name cannot replace it; remove it or choose another --out");
+    if (ours && (frame >= 0 || entry.path().filename() == "stats.json") && (entry.is_symlink(ec) || !entry.is_regular_file(ec))) {
+      throw IoError(entry.path().string() + ": is not a file (a folder, link or device), so this run's file of that name would replace it, not write "
+                    "into it; remove it or choose another --out");
     }
     if (frame < 0 || (entry.path().extension() == extension && frame >= range.begin && frame < range.end)) continue;
     throw InvalidInput(entry.path().string() + ": a mesh of an earlier run that this one would not replace (eval would measure both runs, or refuse a frame with both formats); "
@@ -64,6 +65,8 @@ void run_reconstruct(ReconstructArgs& args) {
   if (!args.input.live && args.input.seconds > 0) throw InvalidInput("--seconds: only with --live");
   ReconstructionArgs& r = args.reconstruction;
   Input in;
+  // A signal stops the run at a frame boundary from here on (live input installs it as it opens).
+  if (!args.input.live) install_stop_on_signal();
   open_input(args.input, r.rig, r.register_mode, "reconstruct", in);
 
   // The output folder is checked before the reconstruction is set up (--register once registers
@@ -73,22 +76,33 @@ void run_reconstruct(ReconstructArgs& args) {
   const fs::path out_dir = output_folder(args.out);  // "out/." could not be removed on failure; a link's folder is made where it points
   if (in.capture) in.capture->check_output_outside(out_dir, "--out");
   StagedFolder out(out_dir, "--out");
-  check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
-  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
-  write_reconstruction(args, in, reconstruction, out);
+  for (const fs::path& killed : out.removed()) {
+    print_diagnostic("reconstruct: warning: removed " + killed.string() + ", the unfinished meshes of a run that was killed");
+  }
+  // Errors name --out as given, not the hidden staging folder the files were written in.
+  try {
+    check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
+    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+    if (!in.live && stop_requested()) throw Interrupted("reconstruct: stopped by a signal before the first frame set; nothing written", stop_signal());
+    write_reconstruction(args, in, reconstruction, out);
+  } catch (const IoError& e) {
+    throw IoError(out.in_user_terms(e.what()));
+  } catch (const InvalidInput& e) {
+    throw InvalidInput(out.in_user_terms(e.what()));
+  }
 }
 
 // Reconstructs every frame set of `in` into `out` (NNNNNN.ply or .obj) and writes stats.json. A
-// capture's run stopped by SIGINT or SIGTERM keeps the frames it made, says so in stats.json and
-// throws Interrupted.
+// capture's meshes are staged and appear at the end; live meshes go straight into the folder, for
+// a live session cannot be made again should the process be killed. A capture's run stopped by a
+// signal keeps the frames it made, says so in stats.json and throws Interrupted.
 void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reconstruction, StagedFolder& out) {
   ReconstructionArgs& r = args.reconstruction;
   const FrameRange& range = in.range;
-  const fs::path& staging = out.staging();
   const fs::path& out_dir = out.dir();
+  const fs::path& mesh_dir = in.live ? out_dir : out.staging();
   if (!in.live) {
     // Live input stops on the signal by itself (its sources watch the flag).
-    install_stop_on_signal();
     in.source = [source = std::move(in.source)](double& decode_ms) -> std::optional<FrameSet> {
       if (stop_requested()) return std::nullopt;
       return source(decode_ms);
@@ -107,7 +121,7 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
     remove_unreferenced_vertices(frame.result.mesh, remap);
     const FrameResult& result = frame.result;
     // Every frame's file has colours, an empty one (no camera in its frame set) too.
-    write_mesh(staging / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
+    write_mesh(mesh_dir / frame_file_name(frame.index, extension), result.mesh, {.colors_when_empty = true});
     const double write_ms = ms_since(write_start);
     const StageTimes& t = result.times;
     totals.push_back(t.total_ms);
@@ -156,11 +170,22 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   const int wanted = range.end - range.begin;
   const bool interrupted = !in.live && static_cast<int>(frames.size()) < wanted && stop_requested();
   if (interrupted) stats["interrupted"] = true;
-  write_file_atomic(staging / "stats.json", json_text(stats, 2) + "\n");
+  write_file_atomic(out.staging() / "stats.json", json_text(stats, 2) + "\n");
+  if (interrupted) {
+    // Meshes of an earlier run for the frames this one did not reach would stay beside its own,
+    // and eval would measure both: they go, as the whole run would have replaced them.
+    std::vector<bool> made(static_cast<size_t>(wanted), false);
+    for (const auto& f : frames) made[static_cast<size_t>(f["frame"].get<int>() - range.begin)] = true;
+    std::error_code ec;
+    for (int f = range.begin; f < range.end; ++f) {
+      if (!made[static_cast<size_t>(f - range.begin)]) fs::remove(out_dir / frame_file_name(f, extension), ec);
+    }
+  }
   out.commit("stats.json");
   if (interrupted) {
     throw Interrupted("reconstruct: stopped by a signal after " + std::to_string(frames.size()) + " of " + std::to_string(wanted) +
-                      " frame sets; wrote them to " + out_dir.string() + " with stats.json (\"interrupted\": true)");
+                          " frame sets; wrote those to " + out_dir.string() + " with stats.json (\"interrupted\": true)",
+                      stop_signal());
   }
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";

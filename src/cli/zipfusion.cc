@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const zipfusion::cli::Interrupted& e) {
     zipfusion::cli::print_error(e.what());
-    return zipfusion::cli::kInterruptedExitCode;
+    return e.exit_code;
   } catch (const zipfusion::InvalidInput& e) {
     zipfusion::cli::print_error(std::string("zipfusion: error: ") + e.what());
     return 2;

@@ -234,13 +234,24 @@ TEST(StagedFolder, FilesAppearTogetherOrNotAtAll) {
   }
   EXPECT_FALSE(fs::exists(dir / "a")) << "an uncommitted run leaves no folder it made";
   const fs::path out = dir / "out";
-  fs::create_directories(out / ".zipfusion-staging-123" / "x");  // a killed run's
+  const pid_t gone = ::fork();
+  if (gone == 0) ::_exit(0);
+  ASSERT_GT(gone, 0);
+  ASSERT_EQ(::waitpid(gone, nullptr, 0), gone);
+  char host[256] = {};
+  ASSERT_EQ(::gethostname(host, sizeof host - 1), 0);
+  const fs::path killed = out / (".zipfusion-staging-" + std::string(host) + "-" + std::to_string(gone));
+  const fs::path elsewhere = out / (".zipfusion-staging-another.host-" + std::to_string(gone));  // a run on another machine
+  fs::create_directories(killed / "x");
+  fs::create_directories(elsewhere / "x");
   write_file_atomic(out / "000000.ply", "old 0");
   write_file_atomic(out / "notes.txt", "kept");
   {
     StagedFolder run(out, "--out");
     EXPECT_FALSE(run.made_dir());
-    EXPECT_FALSE(fs::exists(out / ".zipfusion-staging-123"));
+    EXPECT_FALSE(fs::exists(killed));
+    EXPECT_TRUE(fs::exists(elsewhere));
+    EXPECT_EQ(run.removed(), std::vector<fs::path>{killed});
     EXPECT_EQ(run.staging().parent_path(), out);
     // A second run, in this process or another, finds the folder held.
     try {

@@ -253,38 +253,60 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
 
 namespace {
 
-// Every run's staging folder inside a StagedFolder's folder starts so.
+// Every run's staging folder inside a StagedFolder's folder starts so, then names its host and PID.
 constexpr std::string_view kStagingPrefix = ".zipfusion-staging-";
+
+std::string host_name() {
+  char name[256] = {};
+  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  std::string host(name);
+  std::replace(host.begin(), host.end(), '/', '_');
+  return host;
+}
 
 }  // namespace
 
 StagedFolder::StagedFolder(const std::filesystem::path& asked_for, std::string_view option) : dir_(output_folder(asked_for)) {
   namespace fs = std::filesystem;
-  std::error_code ec;
+  std::error_code ec, made;
   existing_ = nearest_existing(dir_);
   made_dir_ = !fs::exists(dir_, ec);
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec)) throw IoError(dir_.string() + ": is a file, not a folder (choose another " + std::string(option) + ")");
-  fs::create_directories(dir_, ec);
+  fs::create_directories(dir_, made);
   if (!fs::is_directory(dir_, ec)) {
-    throw IoError(dir_.string() + ": cannot create output folder" + (ec ? " (" + ec.message() + ")" : std::string()));
+    throw IoError(dir_.string() + ": cannot create output folder" + (made ? " (" + made.message() + ")" : std::string()));
   }
   lock_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (lock_fd_ < 0) throw IoError(dir_.string() + ": cannot open the output folder (" + std::strerror(errno) + ")");
   if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
     ::close(lock_fd_);
     lock_fd_ = -1;
-    throw InvalidInput(dir_.string() + ": another zipfusion run is writing into this folder (choose another " + std::string(option) + " or wait for it)");
+    if (error == EWOULDBLOCK) {
+      throw InvalidInput(dir_.string() + ": another zipfusion run is writing into this folder (choose another " + std::string(option) + " or wait for it)");
+    }
+    throw IoError(dir_.string() + ": cannot lock the output folder (" + std::strerror(error) + ")");
   }
-  // Holding the lock, every staging folder here is a killed run's.
+  // A staging folder of this machine whose process is gone is a killed run's. flock does not
+  // reach across machines on every network filesystem, so another machine's are left alone.
+  const std::string ours = std::string(kStagingPrefix) + host_name() + "-";
   for (const fs::directory_entry& entry : fs::directory_iterator(dir_, ec)) {
-    if (entry.path().filename().string().starts_with(kStagingPrefix)) fs::remove_all(entry.path(), ec);
+    const std::string name = entry.path().filename().string();
+    if (!name.starts_with(ours)) continue;
+    const std::string pid_text = name.substr(ours.size());
+    if (pid_text.empty() || pid_text.size() > 9 || !std::all_of(pid_text.begin(), pid_text.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
+    if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
+    fs::remove_all(entry.path(), ec);
+    removed_.push_back(entry.path());
   }
-  staging_ = dir_ / (std::string(kStagingPrefix) + std::to_string(::getpid()));
-  if (!fs::create_directory(staging_, ec)) {
+  staging_ = dir_ / (ours + std::to_string(::getpid()));
+  fs::remove_all(staging_, ec);
+  if (!fs::create_directory(staging_, made)) {
     ::close(lock_fd_);
     lock_fd_ = -1;
     if (made_dir_) fs::remove(dir_, ec);
-    throw IoError(staging_.string() + ": cannot create (" + (ec ? ec.message() : std::string("exists")) + ")");
+    throw IoError(dir_.string() + ": cannot write into the output folder (" + (made ? made.message() : std::string("exists")) + ")");
   }
 }
 
@@ -302,17 +324,25 @@ StagedFolder::~StagedFolder() {
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
+std::string StagedFolder::in_user_terms(std::string text) const {
+  const std::string from = staging_.string(), to = dir_.string();
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);
+  return text;
+}
+
 void StagedFolder::commit(const std::string& last) {
   namespace fs = std::filesystem;
   std::error_code ec;
   std::vector<fs::path> files;
   for (const fs::directory_entry& entry : fs::directory_iterator(staging_, ec)) files.push_back(entry.path().filename());
-  if (ec) throw IoError(staging_.string() + ": cannot list (" + ec.message() + ")");
+  if (ec) throw IoError(dir_.string() + ": cannot list the staged files (" + ec.message() + ")");
   std::sort(files.begin(), files.end());
   std::stable_partition(files.begin(), files.end(), [&](const fs::path& name) { return name.string() != last; });
+  // An earlier `last` goes first: a folder a failed commit left half-updated then has none.
+  if (!last.empty()) fs::remove(dir_ / last, ec);
   for (const fs::path& name : files) {
     fs::rename(staging_ / name, dir_ / name, ec);
-    if (ec) throw IoError((dir_ / name).string() + ": cannot write (" + ec.message() + ")");
+    if (ec) throw IoError((dir_ / name).string() + ": cannot write (" + ec.message() + "); " + dir_.string() + " is partly updated");
   }
   committed_ = true;
   fs::remove(staging_, ec);

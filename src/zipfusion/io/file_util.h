@@ -57,8 +57,8 @@ class StagedFolder {
  public:
   //! Makes `dir` (a link followed, as output_folder does) and its parents where missing, and locks
   //! it. Throws InvalidInput when another run holds it (`option` names the command-line option
-  //! that chose it) and IoError when it cannot be made. The staging folders of killed runs are
-  //! removed (the lock says their run is gone).
+  //! that chose it) and IoError when it cannot be made. The staging folders of killed runs on this
+  //! machine (their PID names no process) are removed: removed() lists them.
   StagedFolder(const std::filesystem::path& dir, std::string_view option);
   //! Without commit(): removes the staging folder, then `dir` and the parents this made if empty.
   ~StagedFolder();
@@ -68,9 +68,14 @@ class StagedFolder {
   const std::filesystem::path& dir() const { return dir_; }
   const std::filesystem::path& staging() const { return staging_; }
   bool made_dir() const { return made_dir_; }
+  const std::vector<std::filesystem::path>& removed() const { return removed_; }
+
+  //! `text` (an error's) with the staging folder's path replaced by the folder's.
+  std::string in_user_terms(std::string text) const;
 
   //! Moves every file of staging() into dir(), the one named `last` after all others (so that it
-  //! appearing means the rest are there), then removes staging(). Throws IoError naming the file.
+  //! appearing means the rest are there; an earlier one of that name is removed first), then
+  //! removes staging(). Throws IoError naming the file, and that the folder is partly updated.
   void commit(const std::string& last = {});
 
  private:
@@ -78,6 +83,7 @@ class StagedFolder {
   bool made_dir_ = false;
   bool committed_ = false;
   int lock_fd_ = -1;
+  std::vector<std::filesystem::path> removed_;
 };
 
 }  // namespace zipfusion

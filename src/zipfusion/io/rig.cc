@@ -114,10 +114,8 @@ void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
                   k.distortion[0], k.distortion[1], k.distortion[4], 100.0 * fold);
     f.fail(f.field("distortion"), where);
   }
-  // Past this no lens, however wide, that the five-coefficient model describes (docs/design.md).
-  constexpr double kMostStretch = 3;
   const auto [least, most] = distortion_stretch_range(k);
-  if (!(least >= 1 / kMostStretch && most <= kMostStretch)) {
+  if (!(least >= 1 / kMostDistortionStretch && most <= kMostDistortionStretch)) {
     char where[200];
     std::snprintf(where, sizeof where,
                   "moves points of the image to %.3g–%.3g times their distance from the principal point (a lens: within 1/3–3 times)", least, most);
