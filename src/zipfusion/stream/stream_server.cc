@@ -320,7 +320,10 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
   void respond(http::request<http::string_body> request) {
     const std::string target(request.target());
     if (target.empty() || target.front() != '/') return send(text_response(request, http::status::bad_request, "bad request target"));
-    if (request[http::field::host].empty()) return send(text_response(request, http::status::bad_request, "a Host header is required"));
+    // HTTP/1.1 requires a Host (RFC 9112); an HTTP/1.0 client (wget, a script) may leave it out.
+    if (request[http::field::host].empty() && request.version() >= 11) {
+      return send(text_response(request, http::status::bad_request, "a Host header is required"));
+    }
     if (!server.same_origin(request)) return send(text_response(request, http::status::forbidden, "another site's page may not use this stream"));
     if (server.clients + server.handshaking >= kMaxClients && websocket::is_upgrade(request)) {
       return send(text_response(request, http::status::service_unavailable, "too many viewers"));
@@ -421,7 +424,9 @@ bool StreamServer::Impl::same_origin(const http::request<http::string_body>& req
   // requests whose Origin is not this server. Served on loopback, the Host must be loopback too,
   // so a name rebound to 127.0.0.1 by its DNS cannot reach it.
   const std::string host(request[http::field::host]);
-  if (loopback_host(options.bind_address) && !loopback_host(host)) return false;
+  // No Host at all (HTTP/1.0) is no browser's request: browsers always name the host, which is
+  // what a rebound name would show.
+  if (loopback_host(options.bind_address) && !host.empty() && !loopback_host(host)) return false;
   const std::string origin(request[http::field::origin]);
   return origin.empty() || origin == "http://" + host || origin == "https://" + host;
 }

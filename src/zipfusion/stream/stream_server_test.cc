@@ -158,8 +158,9 @@ TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   // A DNS name that merely starts like a loopback address is a name, not the loopback.
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.attacker.example:8080\r\n\r\n"), "HTTP/1.1 403 Forbidden");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.1.2.3\r\n\r\n"), "HTTP/1.1 200 OK");
-  // Without a Host, not HTTP, too large: a status that says so, not a silent close.
-  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.0\r\n\r\n"), "HTTP/1.0 400 Bad Request");
+  // Without a Host (HTTP/1.1 requires one, HTTP/1.0 does not), not HTTP, too large: a status
+  // that says so, not a silent close.
+  EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.0\r\n\r\n"), "HTTP/1.0 200 OK");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\n\r\n"), "HTTP/1.1 400 Bad Request");
   EXPECT_EQ(raw_request(server.port(), std::string("\x00\x01garbage\r\n\r\n", 13)), "HTTP/1.1 400 Bad Request");
   EXPECT_EQ(raw_request(server.port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + std::string(9000, 'a') + "\r\n\r\n"),
