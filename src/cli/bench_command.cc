@@ -174,8 +174,7 @@ void run_bench(const BenchArgs& args) {
   if (args.soak < 0) throw InvalidInput("--soak: must be 0 or more");
   if (args.threads < 0) throw InvalidInput("--threads: must be 0 (all cores) or more");
   Capture capture = open_capture(args.capture, "bench");
-  const Rig rig = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
-  check_poses_distinct(rig, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig);
+  const Rig rig = calibrated_rig(capture, args.rig);
   if (args.frames_given && args.frames > capture.frame_count()) {
     throw InvalidInput("--frames: " + std::to_string(args.frames) + " reaches past the last frame of a capture with " +
                        std::to_string(capture.frame_count()) + " frames (" + (capture.dir() / "rig.json").string() + ")");

@@ -103,8 +103,7 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
     check_no_live_device_options(args.devices);
     in.capture.emplace(open_capture(args.capture, command));
-    in.rig = rig_path.empty() ? in.capture->rig() : use_calibration_from(*in.capture, rig_path);
-    check_poses_distinct(in.rig, rig_path.empty() ? (in.capture->dir() / "rig.json").string() : rig_path);
+    in.rig = calibrated_rig(*in.capture, rig_path);
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
     warn_missing_frames(*in.capture, in.range, command);
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,

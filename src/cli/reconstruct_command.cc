@@ -48,9 +48,9 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
 void check_no_earlier_meshes(const fs::path& out_dir, const std::string& extension, const FrameRange& range) {
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(out_dir, ec)) {
-    const bool ours = entry.path().filename() == "stats.json" || entry.path().extension() == extension;
     const int frame = frame_index_of(entry.path(), {".ply", ".obj"});
-    if (ours && (frame >= 0 || entry.path().filename() == "stats.json") && (entry.is_symlink(ec) || !entry.is_regular_file(ec))) {
+    const bool ours = entry.path().filename() == "stats.json" || (frame >= 0 && entry.path().extension() == extension);
+    if (ours && (entry.is_symlink(ec) || !entry.is_regular_file(ec))) {
       throw IoError(entry.path().string() + ": is not a file (a folder, link or device), so this run's file of that name would replace it, not write "
                     "into it; remove it or choose another --out");
     }
@@ -172,13 +172,12 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   if (interrupted) stats["interrupted"] = true;
   write_file_atomic(out.staging() / "stats.json", json_text(stats, 2) + "\n");
   if (interrupted) {
-    // Meshes of an earlier run for the frames this one did not reach would stay beside its own,
-    // and eval would measure both: they go, as the whole run would have replaced them.
-    std::vector<bool> made(static_cast<size_t>(wanted), false);
-    for (const auto& f : frames) made[static_cast<size_t>(f["frame"].get<int>() - range.begin)] = true;
+    // Meshes of an earlier run for the frames this one did not reach (none staged) would stay
+    // beside its own, and eval would measure both: they go, as the whole run would have replaced them.
     std::error_code ec;
     for (int f = range.begin; f < range.end; ++f) {
-      if (!made[static_cast<size_t>(f - range.begin)]) fs::remove(out_dir / frame_file_name(f, extension), ec);
+      const std::string name = frame_file_name(f, extension);
+      if (!fs::exists(out.staging() / name, ec)) fs::remove(out_dir / name, ec);
     }
   }
   out.commit("stats.json");

@@ -52,10 +52,9 @@ void run_register(RegisterArgs& args) {
   check_output_file(args.out);
   Capture capture = open_capture(args.capture, "register");
   capture.check_output_outside(args.out, "--out");
-  const Rig start = args.rig.empty() ? capture.rig() : use_calibration_from(capture, args.rig);
+  // GPA-ICP refines poses near the truth; from one shared pose it has no start (calibrated_rig).
+  const Rig start = calibrated_rig(capture, args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
-  // GPA-ICP refines poses near the truth; from one shared pose it has no start.
-  check_poses_distinct(start, args.rig.empty() ? (capture.dir() / "rig.json").string() : args.rig);
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
   const std::vector<int> frames = spread_frames(range, args.max_frames);
 

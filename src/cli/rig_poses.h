@@ -43,4 +43,13 @@ inline const Rig& use_calibration_from(Capture& capture, const std::filesystem::
   return capture.rig();
 }
 
+//! The rig to reconstruct or register a capture with: its own, or (`rig_path`, --rig, not empty)
+//! the calibration of that rig.json put into it. Throws InvalidInput naming the file the poses
+//! came from when two cameras share one pose (check_poses_distinct: an uncalibrated rig).
+inline const Rig& calibrated_rig(Capture& capture, const std::string& rig_path) {
+  const Rig& rig = rig_path.empty() ? capture.rig() : use_calibration_from(capture, rig_path);
+  check_poses_distinct(rig, rig_path.empty() ? (capture.dir() / "rig.json").string() : rig_path);
+  return rig;
+}
+
 }  // namespace zipfusion::cli

@@ -2,8 +2,6 @@
 // frame rate, reconstructed, compressed with Draco and streamed over one HTTP port to the viewer
 // in the browser (web/, served from the same port).
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -26,13 +24,6 @@ namespace zipfusion::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-// This machine's host name, for a URL others can open ("localhost" where it has none).
-std::string machine_name() {
-  char name[256] = {};
-  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
-  return name;
-}
 using Clock = std::chrono::steady_clock;
 
 struct ServeArgs {
@@ -157,7 +148,7 @@ void run_serve(ServeArgs& args) {
   const std::string& host = args.server.bind_address;
   // Bound to every interface, the URL names this machine as others reach it, not 0.0.0.0.
   const bool everywhere = host == "0.0.0.0" || host == "::";
-  std::string url = "http://" + (everywhere ? machine_name() : url_host(host)) + ":" + std::to_string(server.port()) + "/";
+  std::string url = "http://" + (everywhere ? host_name() : url_host(host)) + ":" + std::to_string(server.port()) + "/";
   if (!args.server.token.empty()) url += "?token=" + args.server.token;
   std::cout << "serving " << url << " (" << in.rig.cameras.size() << " cameras, " << in.rig.fps << " fps, lod "
             << r.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;

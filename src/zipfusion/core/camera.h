@@ -62,16 +62,16 @@ inline double distortion_fold_share(const Intrinsics& k) {
   return 0;
 }
 
+//! The most distortion_stretch_range may reach either way (1/3 to 3) before a rig.json reader
+//! refuses the coefficients: past any lens the five-coefficient model describes.
+inline constexpr double kMostDistortionStretch = 3;
+
 //! How far distortion moves the points of the image, at most: the smallest and the largest ratio
 //! |distort(p)| / |p| over a grid of normalised points p spanning the image (to its farthest
 //! corner from the principal point each way). A lens moves a point by a few per cent of its
 //! distance from the centre, a wide one by a few tens; coefficients that scale distances by
 //! several times (1e9 typed for 1e-9) would squeeze the camera's whole image into a few pixels of
 //! the undistorted one, and its surface would silently vanish.
-//! The most distortion_stretch_range may reach either way (1/3 to 3) before a rig.json reader
-//! refuses the coefficients: past any lens the five-coefficient model describes.
-inline constexpr double kMostDistortionStretch = 3;
-
 inline std::pair<double, double> distortion_stretch_range(const Intrinsics& k) {
   const double left = (k.cx + 0.5) / k.fx, right = (k.width - 0.5 - k.cx) / k.fx;
   const double top = (k.cy + 0.5) / k.fy, bottom = (k.height - 0.5 - k.cy) / k.fy;
@@ -89,6 +89,11 @@ inline std::pair<double, double> distortion_stretch_range(const Intrinsics& k) {
     }
   }
   return {least, most};
+}
+
+//! Whether a distortion_stretch_range lies within kMostDistortionStretch either way.
+inline bool stretch_of_a_lens(const std::pair<double, double>& range) {
+  return range.first >= 1 / kMostDistortionStretch && range.second <= kMostDistortionStretch;
 }
 
 //! Pixel of a point in the camera frame. Precondition: p.z() > 0. Distortion applied when present.

@@ -180,12 +180,15 @@ int lock_staging(const std::filesystem::path& staging) {
   return fd;
 }
 
-// A killed run (SIGKILL, a power cut) leaves its staging folder, ".NAME.partial-PID", and no
-// later run has its PID. Such a folder is removed before a new one is made when no process holds
-// its lock and its PID names no process here (a run in another PID namespace holds the lock).
-void remove_abandoned_staging(const std::filesystem::path& parent, const std::string& prefix) {
+// A killed run (SIGKILL, a power cut) leaves its staging folder, PREFIX + PID (".NAME.partial-PID"
+// beside a folder write_folder_atomic writes, ".zipfusion-staging-HOST-PID" in a StagedFolder),
+// and no later run has its PID. Such a folder in `parent` is removed before a new one is made
+// when no process holds its lock and its PID names no process here (a run in another PID
+// namespace holds the lock). Returns the folders removed.
+std::vector<std::filesystem::path> remove_abandoned_staging(const std::filesystem::path& parent, const std::string& prefix) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  std::vector<fs::path> removed;
   for (const fs::directory_entry& entry : fs::directory_iterator(parent, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
@@ -197,6 +200,17 @@ void remove_abandoned_staging(const std::filesystem::path& parent, const std::st
     if (lock < 0) continue;  // held: a run is writing it
     fs::remove_all(entry.path(), ec);
     ::close(lock);
+    removed.push_back(entry.path());
+  }
+  return removed;
+}
+
+// Removes `from` and the folders above it up to `existing` (not included) while they are empty:
+// those a failed run made.
+void remove_empty_folders(const std::filesystem::path& from, const std::filesystem::path& existing) {
+  std::error_code ec;
+  for (std::filesystem::path p = from; !p.empty() && p != existing; p = p.parent_path()) {
+    if (!std::filesystem::remove(p, ec)) break;  // remove() takes only an empty folder
   }
 }
 
@@ -219,9 +233,7 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
   const fs::path existing = nearest_existing(parent);
   auto clean_up = [&] {
     fs::remove_all(staging, ec);
-    for (fs::path p = parent; !p.empty() && p != existing; p = p.parent_path()) {
-      if (!fs::remove(p, ec)) break;  // remove() takes only an empty folder
-    }
+    remove_empty_folders(parent, existing);
   };
   int lock = -1;
   struct Unlock {
@@ -251,18 +263,16 @@ void write_folder_atomic(const std::filesystem::path& asked_for, const std::func
   }
 }
 
+std::string host_name() {
+  char name[256] = {};
+  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  return name;
+}
+
 namespace {
 
 // Every run's staging folder inside a StagedFolder's folder starts so, then names its host and PID.
 constexpr std::string_view kStagingPrefix = ".zipfusion-staging-";
-
-std::string host_name() {
-  char name[256] = {};
-  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
-  std::string host(name);
-  std::replace(host.begin(), host.end(), '/', '_');
-  return host;
-}
 
 }  // namespace
 
@@ -289,17 +299,10 @@ StagedFolder::StagedFolder(const std::filesystem::path& asked_for, std::string_v
   }
   // A staging folder of this machine whose process is gone is a killed run's. flock does not
   // reach across machines on every network filesystem, so another machine's are left alone.
-  const std::string ours = std::string(kStagingPrefix) + host_name() + "-";
-  for (const fs::directory_entry& entry : fs::directory_iterator(dir_, ec)) {
-    const std::string name = entry.path().filename().string();
-    if (!name.starts_with(ours)) continue;
-    const std::string pid_text = name.substr(ours.size());
-    if (pid_text.empty() || pid_text.size() > 9 || !std::all_of(pid_text.begin(), pid_text.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
-    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
-    if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
-    fs::remove_all(entry.path(), ec);
-    removed_.push_back(entry.path());
-  }
+  std::string host = host_name();
+  std::replace(host.begin(), host.end(), '/', '_');  // Linux lets a host name hold any byte
+  const std::string ours = std::string(kStagingPrefix) + host + "-";
+  removed_ = remove_abandoned_staging(dir_, ours);
   staging_ = dir_ / (ours + std::to_string(::getpid()));
   fs::remove_all(staging_, ec);
   if (!fs::create_directory(staging_, made)) {
@@ -315,20 +318,12 @@ StagedFolder::~StagedFolder() {
   std::error_code ec;
   if (!committed_) {
     fs::remove_all(staging_, ec);
-    if (made_dir_) {
-      for (fs::path p = dir_; !p.empty() && p != existing_; p = p.parent_path()) {
-        if (!fs::remove(p, ec)) break;  // remove() takes only an empty folder
-      }
-    }
+    if (made_dir_) remove_empty_folders(dir_, existing_);
   }
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
-std::string StagedFolder::in_user_terms(std::string text) const {
-  const std::string from = staging_.string(), to = dir_.string();
-  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);
-  return text;
-}
+std::string StagedFolder::in_user_terms(std::string text) const { return in_folder_asked_for(std::move(text), staging_, dir_); }
 
 void StagedFolder::commit(const std::string& last) {
   namespace fs = std::filesystem;

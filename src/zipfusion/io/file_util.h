@@ -48,6 +48,9 @@ void check_new_folder(const std::filesystem::path& dir, std::string_view option)
 //! of earlier runs whose process is gone (killed) are removed first.
 void write_folder_atomic(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& staging)>& fill);
 
+//! This machine's host name ("localhost" where it has none): staging folders and URLs name it.
+std::string host_name();
+
 //! Files that appear in a folder together, or not at all: a run writes them into staging(), a
 //! hidden folder inside it, and commit() moves them in, replacing files of the same names. A run
 //! that fails, or that ends without commit(), leaves the folder as it found it. The folder is

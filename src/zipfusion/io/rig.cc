@@ -6,7 +6,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
-#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -115,7 +114,7 @@ void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
     f.fail(f.field("distortion"), where);
   }
   const auto [least, most] = distortion_stretch_range(k);
-  if (!(least >= 1 / kMostDistortionStretch && most <= kMostDistortionStretch)) {
+  if (!stretch_of_a_lens({least, most})) {
     char where[200];
     std::snprintf(where, sizeof where,
                   "moves points of the image to %.3g–%.3g times their distance from the principal point (a lens: within 1/3–3 times)", least, most);
@@ -336,13 +335,13 @@ std::vector<Rigid3d> world_from_depth_poses(const Rig& rig) {
 }
 
 std::optional<std::pair<int, int>> cameras_sharing_a_pose(const Rig& rig) {
-  const double max_angle = kSamePoseDeg * std::numbers::pi / 180;
   for (size_t j = 1; j < rig.cameras.size(); ++j) {
     for (size_t i = 0; i < j; ++i) {
       const Rigid3d& a = rig.cameras[i].world_from_depth;
       const Rigid3d& b = rig.cameras[j].world_from_depth;
-      const double angle = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
-      if ((a.translation() - b.translation()).norm() <= kSamePoseM && angle <= max_angle) return std::pair{static_cast<int>(i), static_cast<int>(j)};
+      if ((a.translation() - b.translation()).norm() <= kSamePoseM && rotation_angle_deg(a.inverse() * b) <= kSamePoseDeg) {
+        return std::pair{static_cast<int>(i), static_cast<int>(j)};
+      }
     }
   }
   return std::nullopt;
