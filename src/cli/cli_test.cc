@@ -381,7 +381,9 @@ TEST_F(Cli, AnInterruptedRunKeepsWholeMeshesAndSaysSo) {
                              " & p=$!; for i in $(seq 1000); do ls " + out.string() +
                              "/.zipfusion-staging-*/000000.ply > /dev/null 2>&1 && break; sleep 0.01; done; kill -INT $p; wait $p; echo $? > " +
                              (dir_ / "status").string();
-  ASSERT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
+  // set -m: the run is an interactive shell's job, as Ctrl-C reaches it (a script's background
+  // job ignores SIGINT, and so does the run: IgnoredSignalsStayIgnored).
+  ASSERT_EQ(std::system(("bash -c 'set -m; " + script + "' 2> /dev/null").c_str()), 0);
   std::ifstream status_file(dir_ / "status");
   int status = -1;
   status_file >> status;
@@ -404,6 +406,30 @@ TEST_F(Cli, AnInterruptedRunKeepsWholeMeshesAndSaysSo) {
   EXPECT_EQ(meshes, made);
   EXPECT_NE(err.find(" of 40 frame sets; wrote those to "), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(out / "000039.ply")) << "the earlier run's mesh of a frame not reached";
+}
+
+// A signal the run started with ignored stays ignored: nohup's SIGHUP (the run outlives its
+// terminal) and a script's background job's SIGINT. The run goes on to the end; SIGTERM would stop it.
+TEST_F(Cli, IgnoredSignalsStayIgnored) {
+  const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
+  const fs::path out = dir_ / "out";
+  const std::string script = "trap \"\" HUP; " + std::string(ZF_BINARY) + " reconstruct " + samba.string() +
+                             " --frames 30:40 --register off --out " + out.string() + " > " + (dir_ / "stdout").string() + " 2> " +
+                             (dir_ / "stderr").string() + " & p=$!; for i in $(seq 1000); do ls " + out.string() +
+                             "/.zipfusion-staging-*/000030.ply > /dev/null 2>&1 && break; sleep 0.01; done; kill -HUP $p; kill -INT $p; wait $p; echo $? > " +
+                             (dir_ / "status").string();
+  ASSERT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
+  std::ifstream status_file(dir_ / "status");
+  int status = -1;
+  status_file >> status;
+  std::ifstream err_file(dir_ / "stderr");
+  const std::string err((std::istreambuf_iterator<char>(err_file)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(status, 0) << err;
+  std::ifstream stats_file(out / "stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(stats_file);
+  EXPECT_FALSE(stats.contains("interrupted") && stats["interrupted"].get<bool>()) << stats.dump();
+  EXPECT_EQ(stats["frames"].size(), 10u);
+  EXPECT_TRUE(fs::exists(out / "000039.ply"));
 }
 
 // A capture or output folder whose name is not UTF-8 (Linux allows any bytes) is written, its

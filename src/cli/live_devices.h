@@ -111,7 +111,9 @@ inline std::vector<std::unique_ptr<LiveCamera>> open_live_cameras(LiveDeviceArgs
 }
 
 //! Set by SIGINT, SIGTERM or SIGHUP (a closed terminal) while installed; a second one ends the
-//! process as usual.
+//! process as usual. A signal the process started with ignored stays ignored: nohup's SIGHUP (the
+//! run outlives the terminal), a script's background job's SIGINT (Ctrl-C in the terminal is for
+//! the script's foreground). SIGTERM, which nothing ignores by custom, stops it there.
 inline std::atomic<bool>& stop_requested() {
   static std::atomic<bool> flag{false};
   return flag;
@@ -139,7 +141,11 @@ inline void install_stop_on_signal() {
   };
   action.sa_flags = SA_RESETHAND;
   sigemptyset(&action.sa_mask);
-  for (const int number : {SIGINT, SIGTERM, SIGHUP}) sigaction(number, &action, nullptr);
+  for (const int number : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction inherited {};
+    if (sigaction(number, nullptr, &inherited) == 0 && inherited.sa_handler == SIG_IGN) continue;
+    sigaction(number, &action, nullptr);
+  }
 }
 
 }  // namespace zipfusion::cli
