@@ -129,7 +129,8 @@ Intrinsics parse_intrinsics(const Fields& f) {
   // sized by it (a distortion map of every pixel) has been built.
   if (!plausible_image_size(static_cast<std::uint64_t>(width), static_cast<std::uint64_t>(height))) {
     const bool only_height_too_long = width <= static_cast<long long>(kMostImageSide) && height > static_cast<long long>(kMostImageSide);
-    f.fail(f.field(only_height_too_long ? "height" : "width"), std::to_string(width) + "x" + std::to_string(height) +
+    // The sizes as the file writes them: one past long long's range reads here as its largest.
+    f.fail(f.field(only_height_too_long ? "height" : "width"), Fields::quoted(f.required("width")) + "x" + Fields::quoted(f.required("height")) +
                                                                 " is larger than any camera's image (at most " + std::to_string(kMostImageSide) +
                                                                 " pixels a side and 2^26 pixels)");
   }

@@ -143,7 +143,7 @@ TEST_F(RigFile, EveryMalformedFieldIsNamed) {
       // Past int's range, the field's own limit is named.
       {"frame_count past int", [](json& j) { j["frame_count"] = 2147483648LL; }, "frame_count: must be at most 1000000 (frame files are numbered with six digits), got 2147483648"},
       {"width past int", [](json& j) { j["cameras"][1]["depth_intrinsics"]["width"] = 4000000000LL; }, "cameras[1].depth_intrinsics.width: 4000000000x240 is larger than any camera's image"},
-      {"width past long long", [](json& j) { j["cameras"][1]["depth_intrinsics"]["width"] = 18446744073709551615ULL; }, "cameras[1].depth_intrinsics.width: 9223372036854775807x240 is larger than any camera's image"},
+      {"width past long long", [](json& j) { j["cameras"][1]["depth_intrinsics"]["width"] = 18446744073709551615ULL; }, "cameras[1].depth_intrinsics.width: 18446744073709551615x240 is larger than any camera's image"},
       {"more frames than six digits number", [](json& j) { j["frame_count"] = 1000001; },
        "frame_count: must be at most 1000000 (frame files are numbered with six digits), got 1000001"},
       {"string depth unit", [](json& j) { j["depth_unit_m"] = "mm"; }, "depth_unit_m: must be a number"},
