@@ -456,6 +456,46 @@ TEST_F(CalibrateCli, LevelsSamba4camOnItsFloor) {
   EXPECT_NEAR(levelled.volume->max.y(), 1.0, 0.01);
 }
 
+// A calibration replaces an earlier output of its kind and nothing else: a capture's rig.json
+// named as calibrate intrinsics' --out, or an intrinsics file as extrinsics' or register's, is
+// refused before any work and left as it was; an intrinsics file or an empty one is replaced.
+TEST_F(CalibrateCli, ReplacesOnlyAFileOfItsOwnKind) {
+  auto slurp = [](const fs::path& p) {
+    const std::vector<std::uint8_t> bytes = read_file_bytes(p);
+    return std::string(bytes.begin(), bytes.end());
+  };
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  const fs::path rig_json = capture / "rig.json";
+  const std::string rig_before = slurp(rig_json);
+  const CommandResult intrinsics = run("calibrate intrinsics --images 'nothing/*.png' --board 9x6 --out " + rig_json.string());
+  EXPECT_EQ(intrinsics.exit_code, 2);
+  EXPECT_EQ(intrinsics.err, "zipfusion: error: --out: " + rig_json.string() +
+                                " is a \"zipfusion.rig/1\" file, not a \"zipfusion.intrinsics/1\" file to replace; name a new file, or remove "
+                                "that one first\n");
+  EXPECT_EQ(slurp(rig_json), rig_before);
+
+  const fs::path cam_json = dir_ / "cam.json";
+  write_file_atomic(cam_json, "{\"format\": \"zipfusion.intrinsics/1\"}\n");
+  const CommandResult registered = run("register " + capture.string() + " --out " + cam_json.string());
+  EXPECT_EQ(registered.exit_code, 2);
+  EXPECT_NE(registered.err.find(" is a \"zipfusion.intrinsics/1\" file, not a \"zipfusion.rig/1\" file to replace"), std::string::npos) << registered.err;
+  const fs::path photo = dir_ / "photo.jpg";
+  write_file_atomic(photo, "\xff\xd8\xff\xe0 not json");
+  const CommandResult floor = run("calibrate floor " + capture.string() + " --out " + photo.string());
+  EXPECT_EQ(floor.exit_code, 2);
+  EXPECT_NE(floor.err.find(photo.string() + " is there and is not JSON"), std::string::npos) << floor.err;
+  EXPECT_EQ(slurp(photo), "\xff\xd8\xff\xe0 not json");
+
+  // Its own kind, and an empty file (mktemp's), get as far as the images.
+  for (const std::string& contents : {std::string("{\"format\": \"zipfusion.intrinsics/1\"}"), std::string()}) {
+    write_file_atomic(cam_json, contents);
+    const CommandResult again = run("calibrate intrinsics --images '" + (dir_ / "none").string() + "/*.png' --board 9x6 --out " + cam_json.string());
+    EXPECT_EQ(again.err.find("--out:"), std::string::npos) << again.err;
+    EXPECT_NE(again.err.find("none"), std::string::npos) << again.err;
+  }
+}
+
 TEST_F(CalibrateCli, CalibratesIntrinsicsFromRenderedBoards) {
   const fs::path boards = dir_ / "boards";
   ASSERT_EQ(run("synth --checkerboard --views 8 --out " + boards.string()).exit_code, 0);

@@ -107,6 +107,7 @@ void explain_missing_boards(const std::vector<std::string>& files, const std::ve
 void run_intrinsics(const IntrinsicsArgs& args) {
   const BoardOptions board = parse_board(args.board, args.square_m);
   check_output_file(args.out);
+  check_replaces_only_format(args.out, kIntrinsicsFormat, "--out");
   const std::vector<std::string> files = glob_files(args.images);
   std::vector<std::optional<std::vector<Eigen::Vector2d>>> corners(files.size());
   int width = 0, height = 0;
@@ -236,6 +237,7 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   args.options.num_threads = args.threads;
   args.options.validate();
   check_output_file(args.out);
+  check_replaces_only_format(args.out, kRigFormat, "--out");
   const Capture capture = open_capture(args.capture, "calibrate");
   capture.check_output_outside(args.out, "--out");
   // The rig the wand is calibrated in: the capture's, with the intrinsics given on the command line.
@@ -290,6 +292,7 @@ void run_floor(FloorArgs& args) {
   args.options.prefer_lower_plane = args.floor_plane == "lowest";
   args.options.validate();  // its own bounds first; the frames are checked against the capture below
   check_output_file(args.out);
+  check_replaces_only_format(args.out, kRigFormat, "--out");
   Capture capture = open_capture(args.capture, "calibrate");
   capture.check_output_outside(args.out, "--out");
   // The floor does not move, and a few frames see it around a subject who does.

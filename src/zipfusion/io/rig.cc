@@ -283,6 +283,25 @@ Rig read_rig(const std::filesystem::path& path) {
   return parse_rig(std::string(bytes.begin(), bytes.end()), path.string());
 }
 
+void check_replaces_only_format(const std::filesystem::path& path, const char* format, std::string_view option) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(path, ec) || (fs::is_regular_file(path, ec) && fs::file_size(path, ec) == 0 && !ec)) return;
+  auto refuse = [&](const std::string& what) {
+    throw InvalidInput(std::string(option) + ": " + path.string() + " " + what + ", not a \"" + format +
+                       "\" file to replace; name a new file, or remove that one first");
+  };
+  if (!fs::is_regular_file(path, ec)) refuse("is not a plain file");
+  // A rig of the most cameras is tens of kB: what is far larger (a video) is not read to say so.
+  if (fs::file_size(path, ec) > (std::uintmax_t{64} << 20)) refuse("is over 64 MB");
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  const json found = json::parse(bytes.begin(), bytes.end(), nullptr, /*allow_exceptions=*/false);
+  if (found.is_discarded() || !found.is_object()) refuse("is there and is not JSON");
+  const auto key = found.find("format");
+  if (key == found.end() || !key->is_string()) refuse("is a JSON file without a \"format\"");
+  if (key->get<std::string>() != format) refuse("is a \"" + printable_excerpt(key->get<std::string>(), 40) + "\" file");
+}
+
 std::string format_rig(const Rig& rig) {
   std::ostringstream out;
   out << "{\n";

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -66,6 +67,12 @@ inline constexpr const char* kIntrinsicsFormat = "zipfusion.intrinsics/1";
 //! report) are ignored. `source` names the file in error messages.
 Intrinsics parse_intrinsics_file(const std::string& json_text, const std::string& source);
 Intrinsics read_intrinsics_file(const std::filesystem::path& path);
+
+//! Throws InvalidInput unless `path` is free for a file of `format` (kRigFormat,
+//! kIntrinsicsFormat): missing, empty, or a JSON file of that format. A calibration's output
+//! replaces an earlier one of its kind, never another file named by mistake (a capture's rig.json
+//! given to `calibrate intrinsics`, an intrinsics file to `calibrate extrinsics`).
+void check_replaces_only_format(const std::filesystem::path& path, const char* format, std::string_view option);
 
 //! Intrinsics as a JSON object, as rig.json writes them; numbers round-trip exactly.
 std::string format_intrinsics(const Intrinsics& k);
