@@ -46,13 +46,13 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--bilateral-sigma-px", o.filter.spatial_sigma_px, "Bilateral spatial sigma, pixels (positive)")->capture_default_str();
   cmd->add_option("--bilateral-radius", o.filter.radius_px, "Bilateral radius, pixels, in [1, 32]")->capture_default_str();
   cmd->add_option("--bilateral-range-sigma", o.filter.range_sigma_m, "Bilateral range sigma, metres (positive)")->capture_default_str();
-  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres in (0, 0.5)")
+  cmd->add_option("--redundancy-distance", o.zipper.redundancy_distance_m, "d_r: overlap closer than this is redundant, metres in (0, 0.1]")
       ->capture_default_str();
   cmd->add_option("--coarse-levels", o.zipper.coarse_levels, "L: redundancy removal starts on depth downsampled by 2^L, L in [0, 4]")->capture_default_str();
   cmd->add_option("--coarse-shrink", o.zipper.coarse_shrink, "beta: d_r at level l is beta^l d_r, beta in (0, 1]")->capture_default_str();
-  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres in (0, 0.5)")
+  cmd->add_option("--clipping-distance", o.zipper.clipping_distance_m, "d_c: triangles this close to another mesh are re-triangulated, metres in (0, 0.05]")
       ->capture_default_str();
-  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres in (0, 0.5)")->capture_default_str();
+  cmd->add_option("--max-seam-edge", o.zipper.max_seam_edge_m, "Longest edge of a seam triangle, metres in (0, 0.1]")->capture_default_str();
   cmd->add_option("--seam-smoothing", o.zipper.seam_smoothing_px,
                   "Seam points lie at the mean depth of their surface over (2*this+1)^2 pixels, in [0, 4], halved at each --lod level (0: as "
                   "measured; -1: auto, 2 without the filter, 1 with it)")

@@ -13,6 +13,7 @@
 #include <functional>
 #include <limits>
 
+#include "zipfusion/core/error.h"
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/core/mesh_test_util.h"
 #include "zipfusion/core/rasterizer.h"
@@ -122,6 +123,28 @@ TriangleMesh wall_interior(const TriangleMesh& wall) {
     if (std::abs(p.y()) < 0.55f && p.z() > 0.25f && p.z() < 1.75f) interior.positions.push_back(p);
   }
   return interior;
+}
+
+// The zipper's distances stop where they stop meaning one surface: 0.1 m for d_r and the longest
+// seam edge, 0.05 m for d_c (beyond, seams webbed over the gaps of a body and folded).
+TEST(Zipper, DistancesBeyondABodysGapsAreRefused) {
+  auto refusal = [](auto set) {
+    ZipperOptions options;
+    set(options);
+    try {
+      options.validate();
+    } catch (const InvalidInput& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.redundancy_distance_m = 0.1; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.redundancy_distance_m = 0.11; }), "--redundancy-distance: must be in (0, 0.1] metres");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.max_seam_edge_m = 0.1; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.max_seam_edge_m = 0.2; }), "--max-seam-edge: must be in (0, 0.1] metres");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = 0.05; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = 0.06; }), "--clipping-distance: must be in (0, 0.05] metres");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = std::nan(""); }), "--clipping-distance: must be in (0, 0.05] metres");
 }
 
 TEST(Zipper, TwoOverlappingViewsOfAPlaneBecomeOneSheet) {
