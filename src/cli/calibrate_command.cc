@@ -237,9 +237,9 @@ void run_extrinsics(ExtrinsicsArgs& args) {
   args.options.num_threads = args.threads;
   args.options.validate();
   check_output_file(args.out);
-  check_replaces_only_format(args.out, kRigFormat, "--out");
   const Capture capture = open_capture(args.capture, "calibrate");
   capture.check_output_outside(args.out, "--out");
+  check_replaces_only_format(args.out, kRigFormat, "--out");
   // The rig the wand is calibrated in: the capture's, with the intrinsics given on the command line.
   Rig rig = capture.rig();
   const std::string rig_source = (capture.dir() / "rig.json").string();
@@ -292,9 +292,9 @@ void run_floor(FloorArgs& args) {
   args.options.prefer_lower_plane = args.floor_plane == "lowest";
   args.options.validate();  // its own bounds first; the frames are checked against the capture below
   check_output_file(args.out);
-  check_replaces_only_format(args.out, kRigFormat, "--out");
   Capture capture = open_capture(args.capture, "calibrate");
   capture.check_output_outside(args.out, "--out");
+  check_replaces_only_format(args.out, kRigFormat, "--out");
   // The floor does not move, and a few frames see it around a subject who does.
   const FrameRange range = args.frames.empty() ? FrameRange{0, std::min(FloorOptions{}.end_frame, capture.frame_count())}
                                                : parse_frame_range(args.frames, capture.frame_count());

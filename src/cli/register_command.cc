@@ -50,9 +50,9 @@ void run_register(RegisterArgs& args) {
   if (args.max_frames < 1) throw InvalidInput("--max-frames: must be at least 1, got " + std::to_string(args.max_frames));
   args.options.validate();
   check_output_file(args.out);
-  check_replaces_only_format(args.out, kRigFormat, "--out");
   Capture capture = open_capture(args.capture, "register");
   capture.check_output_outside(args.out, "--out");
+  check_replaces_only_format(args.out, kRigFormat, "--out");
   // GPA-ICP refines poses near the truth; from one shared pose it has no start (calibrated_rig).
   const Rig start = calibrated_rig(capture, args.rig);
   if (start.cameras.size() < 2) throw InvalidInput(args.capture + ": nothing to register: the rig has one camera");
