@@ -135,6 +135,7 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
                       {"zipper", {{"pairs", result.zipper.pairs}, {"redundant_removed", result.zipper.redundant_removed},
                                   {"seam_taken", result.zipper.seam_taken}, {"seam_added", result.zipper.seam_added},
                                   {"seam_pca", result.zipper.seam_pca}, {"seam_crease_gaps", result.zipper.seam_crease_gaps}}}});
+    if (args.reconstruction.options.min_component_triangles > 1) frames.back()["small_component_triangles"] = result.small_component_triangles;
     if (in.live && in.skew_of(frame.index) >= 0) frames.back()["skew_ms"] = in.skew_of(frame.index);
     if (const std::vector<std::string> unreadable = in.unreadable_of(frame.index); !unreadable.empty()) frames.back()["unreadable_files"] = unreadable;
     if (range.end > range.begin) show_progress("reconstruct", frame.index - range.begin + 1, range.end - range.begin);

@@ -61,6 +61,10 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
                   "Rounds of smoothing the seams' points along their rays towards their neighbours, in [0, 8], then the corners of the creases "
                   "left (0: neither)")
       ->capture_default_str();
+  cmd->add_option("--min-component", o.min_component_triangles,
+                  "Drop connected pieces of fewer triangles than this (specks of noise, bits of floor), in [0, 1000000] (0: keep all)")
+      ->check(kWholeNumber)
+      ->capture_default_str();
   cmd->add_option("--ownership", args.ownership,
                   "Which camera keeps a surface two see: the smoother one (smoothness: less noise), the one seeing it farther from its "
                   "border (border: more frontally), or auto (smoothness without the filter, border with it)")

@@ -79,13 +79,6 @@ TriangleMesh crop_to_volume(const TriangleMesh& mesh, const std::optional<Box3d>
   return out;
 }
 
-int find_root(std::vector<int>& parent, int i) {
-  while (parent[i] != i) {
-    parent[i] = parent[parent[i]];  // path halving
-    i = parent[i];
-  }
-  return i;
-}
 
 // One camera's rendering of the truth, for the observed test.
 struct CameraView {
@@ -142,29 +135,6 @@ void EvalOptions::validate() const {
   if (num_threads < 0) fail("num_threads", "must be >= 0", num_threads);
 }
 
-MeshComponents connected_components(const TriangleMesh& mesh) {
-  std::vector<int> parent(mesh.positions.size());
-  std::iota(parent.begin(), parent.end(), 0);
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    for (int k = 1; k < 3; ++k) {
-      const int a = find_root(parent, t[0]), b = find_root(parent, t[k]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
-  MeshComponents out;
-  out.triangle_component.resize(mesh.triangles.size());
-  std::vector<int> id(mesh.positions.size(), -1);  // root -> component
-  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
-    int& component = id[find_root(parent, mesh.triangles[i][0])];
-    if (component < 0) {
-      component = out.count();
-      out.triangle_counts.push_back(0);
-    }
-    out.triangle_component[i] = component;
-    out.triangle_counts[component]++;
-  }
-  return out;
-}
 
 namespace {
 

@@ -80,14 +80,6 @@ struct FrameQuality {
 FrameQuality evaluate_frame(const TriangleMesh& reconstruction, const TriangleMesh& truth, const Rig& true_rig,
                             const std::optional<Box3d>& volume, const EvalOptions& options = {});
 
-//! Connected components of a mesh: triangles that share a vertex index belong together.
-struct MeshComponents {
-  std::vector<int> triangle_component;  // per triangle: component id, numbered by first triangle
-  std::vector<int> triangle_counts;     // per component: its number of triangles
-  int count() const { return static_cast<int>(triangle_counts.size()); }
-};
-MeshComponents connected_components(const TriangleMesh& mesh);
-
 //! Undirected edges (vertex-index pairs) used by more than two triangles. Triangles that repeat
 //! a vertex index are skipped.
 int count_non_manifold_edges(const TriangleMesh& mesh);

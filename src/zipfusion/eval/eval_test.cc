@@ -261,18 +261,6 @@ TEST(Eval, DoubledTriangles) {
   EXPECT_EQ(evaluate_frame(doubled, square(0), one_camera_rig(), std::nullopt).doubled_triangles, 1);
 }
 
-TEST(Eval, ConnectedComponentsLabelTriangles) {
-  TriangleMesh mesh = grid_square(0, 0.1, 0, 0.1, 0, 2);  // 8 triangles
-  mesh.append(grid_square(1, 1.1, 0, 0.1, 0, 1));         // 2 triangles
-  mesh.triangles.emplace_back(0, 0, 0);                    // degenerate, its own component
-  const MeshComponents c = connected_components(mesh);
-  ASSERT_EQ(c.count(), 2);
-  EXPECT_EQ(c.triangle_counts, (std::vector<int>{9, 2}));
-  EXPECT_EQ(c.triangle_component[0], 0);
-  EXPECT_EQ(c.triangle_component[8], 1);
-  EXPECT_EQ(c.triangle_component[10], 0);
-}
-
 TEST(Eval, ColourErrorOfShiftedColours) {
   // Truth: a coarse grid with colours linear in x and z (rounded at the vertices); the
   // reconstruction: a finer grid 2 mm in front with the same function + 10 levels. Interpolating

@@ -50,6 +50,7 @@ Rig at_depth_level(Rig rig, int level) {
 
 void ReconstructOptions::validate() const {
   if (depth_level < 0 || depth_level > 3) throw InvalidInput("--lod: must be in [0, 3]");
+  if (min_component_triangles < 0 || min_component_triangles > 1000000) throw InvalidInput("--min-component: must be in [0, 1000000] triangles");
   foreground.validate();
   filter.validate();
   sdc.validate();
@@ -164,6 +165,11 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
       if (active[c]) append_depth_mesh(cameras_[c].mesh, cameras_[c].colors, result.mesh, vertex_of_pixel_);
     }
     result.times.assemble_ms = elapsed_ms(assemble_start);
+  }
+  if (options_.min_component_triangles > 1) {
+    const Clock::time_point pieces_start = Clock::now();
+    result.small_component_triangles = remove_small_components(result.mesh, options_.min_component_triangles, components_);
+    result.times.assemble_ms += elapsed_ms(pieces_start);
   }
   result.times.total_ms = elapsed_ms(start);
   return result;

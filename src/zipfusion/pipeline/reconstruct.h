@@ -43,6 +43,9 @@ struct ReconstructOptions {
   // the triangles). Thresholds in pixels shrink and the SDC depth jump grows with the pixel
   // spacing (sdc_depth_jump); colour is still sampled from the full colour image.
   int depth_level = 0;
+  // Connected pieces of fewer triangles are dropped from the mesh (specks of noise at
+  // silhouettes, bits of floor a high camera's noise lifts into the volume); 0 keeps every piece.
+  int min_component_triangles = 0;
   int num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InvalidInput naming the field
@@ -85,6 +88,7 @@ struct FrameResult {
   StageTimes times;
   int cameras_used = 0;   // cameras that had depth in this frame set
   ZipperStats zipper;     // zipper mode only
+  int small_component_triangles = 0;  // triangles dropped in pieces under min_component_triangles
 };
 
 class FrameReconstructor {
@@ -135,6 +139,7 @@ class FrameReconstructor {
   std::vector<char> active_;                 // per camera: has depth in this frame set
   std::vector<ZipperCamera> zipper_inputs_;
   ZipperScratch zipper_scratch_;
+  MeshComponents components_;  // remove_small_components' scratch
   std::mutex spare_mutex_;
   std::vector<TriangleMesh> spare_meshes_;  // recycled, at most kSpareMeshes
 };
