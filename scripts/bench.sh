@@ -119,7 +119,7 @@ sleep 3  # the loop's first pass decodes the frames
 # The viewer's wide flow window: frames are made only when a viewer has room, so one that keeps up needs it.
 "$BUILD_DIR/zf_stream_clients" --port "$port" --clients 1 --stalled 0 --window 3 --seconds 10 --json > "$OUT/stream_flow_client.json"
 node bench/stream_latency.mjs "$url" --seconds 20 > "$OUT/stream_browser.json"
-kill -TERM "$serve_pid" 2> /dev/null || true  # a script's background job ignores SIGINT, and so does serve
+kill -TERM "$serve_pid" 2> /dev/null || true
 wait "$serve_pid" 2> /dev/null || true
 "$BUILD_DIR/zf_draco_bench" "$SAMBA" --frames "$FRAMES" --json > "$OUT/stream_draco.json"
 

@@ -487,8 +487,18 @@ TEST_F(CalibrateCli, ReplacesOnlyAFileOfItsOwnKind) {
   EXPECT_NE(floor.err.find(photo.string() + " is there and is not JSON"), std::string::npos) << floor.err;
   EXPECT_EQ(slurp(photo), "\xff\xd8\xff\xe0 not json");
 
+  // info's report names the rig's format but is no rig.
+  const fs::path report = dir_ / "info.json";
+  const CommandResult info = run("info --json " + capture.string());
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  write_file_atomic(report, info.out);
+  const CommandResult over_report = run("calibrate floor " + capture.string() + " --out " + report.string());
+  EXPECT_EQ(over_report.exit_code, 2);
+  EXPECT_NE(over_report.err.find(" has no cameras with world_from_depth"), std::string::npos) << over_report.err;
+  EXPECT_EQ(slurp(report), info.out);
+
   // Its own kind, and an empty file (mktemp's), get as far as the images.
-  for (const std::string& contents : {std::string("{\"format\": \"zipfusion.intrinsics/1\"}"), std::string()}) {
+  for (const std::string& contents : {std::string("{\"format\": \"zipfusion.intrinsics/1\", \"intrinsics\": {}}"), std::string()}) {
     write_file_atomic(cam_json, contents);
     const CommandResult again = run("calibrate intrinsics --images '" + (dir_ / "none").string() + "/*.png' --board 9x6 --out " + cam_json.string());
     EXPECT_EQ(again.err.find("--out:"), std::string::npos) << again.err;

@@ -111,9 +111,9 @@ inline std::vector<std::unique_ptr<LiveCamera>> open_live_cameras(LiveDeviceArgs
 }
 
 //! Set by SIGINT, SIGTERM or SIGHUP (a closed terminal) while installed; a second one ends the
-//! process as usual. A signal the process started with ignored stays ignored: nohup's SIGHUP (the
-//! run outlives the terminal), a script's background job's SIGINT (Ctrl-C in the terminal is for
-//! the script's foreground). SIGTERM, which nothing ignores by custom, stops it there.
+//! process as usual. A SIGHUP the process started with ignored stays ignored: nohup's (the run
+//! outlives its terminal). SIGINT is caught all the same: a script that starts a run in the
+//! background (bash then ignores SIGINT for it) and waits is stopped by Ctrl-C as a whole.
 inline std::atomic<bool>& stop_requested() {
   static std::atomic<bool> flag{false};
   return flag;
@@ -143,7 +143,7 @@ inline void install_stop_on_signal() {
   sigemptyset(&action.sa_mask);
   for (const int number : {SIGINT, SIGTERM, SIGHUP}) {
     struct sigaction inherited {};
-    if (sigaction(number, nullptr, &inherited) == 0 && inherited.sa_handler == SIG_IGN) continue;
+    if (number == SIGHUP && sigaction(number, nullptr, &inherited) == 0 && inherited.sa_handler == SIG_IGN) continue;
     sigaction(number, &action, nullptr);
   }
 }

@@ -100,6 +100,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"seam_smoothing_px", options.seam_smoothing_px()},  // auto resolved; full-resolution pixels (halved at each --lod level)
           {"seam_fairing_iterations", options.zipper.seam_fairing_iterations},
           {"min_overlap_share", options.zipper.min_overlap_share},
+          {"min_component_triangles", options.min_component_triangles},
           {"ownership", options.ownership() == Ownership::kBorder ? "border" : "smoothness"},  // as used, auto resolved
           {"hole_closing_px", options.zipper.hole_closing_px},
           {"smoothness_window_px", options.zipper.smoothness_window_px},

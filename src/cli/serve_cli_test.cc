@@ -159,10 +159,10 @@ TEST_F(ServeCli, CtrlCStopsAtOnceBetweenSlowFrames) {
   const std::string capture = (dir_ / "slow").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 2 --cameras 2 --fps 0.05 --resolution 64x48").exit_code, 0);
   const auto out = dir_ / "serve.out", pid_file = dir_ / "serve.pid";
-  // Started as an interactive shell's job (set -m): a script's background job ignores SIGINT.
+  // A background job of sh, which ignores SIGINT for it: serve catches it all the same.
   const std::string command = std::string(ZF_BINARY) + " serve " + capture + "/ --loop --port 0 --threads 1 > " + out.string() +
                               " 2>&1 < /dev/null & echo $! > " + pid_file.string();
-  ASSERT_EQ(std::system(("bash -c 'set -m; " + command + "' 2> /dev/null").c_str()), 0);
+  ASSERT_EQ(std::system(command.c_str()), 0);
   // However the test ends, the server it started does not outlive it (--loop never ends alone).
   struct KillOnExit {
     std::filesystem::path pid_file;

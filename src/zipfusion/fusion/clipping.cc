@@ -713,8 +713,8 @@ struct SeamSurface {
 // `same_surface` of p's depth there) as the seam reads its own points (SeamSurface::near_pixel);
 // the two layers are taken as parallel, at the distance of the two points along the normal. p
 // itself where the other camera has no depth on that surface or the ray grazes the surface; the
-// move is at most `same_surface`, and at most the width of p's pixel at its depth
-// (`pixel_footprint`, depth / f): p's kept neighbours do not move, and a step of several pixels
+// move is at most `same_surface`, and at most the width of p's pixel at its distance
+// (`pixel_footprint`, distance from the camera / f): p's kept neighbours do not move, and a step of several pixels
 // between them folds the grid where the pixels are small (cameras 0.9 m from a person, or
 // 1280×960: a zippering review's 21–39 folded edges a frame against none in the separate meshes;
 // with this bound 0–1, and on samba-4cam 0.90 → 0.68 a frame set filtered). Moving along the

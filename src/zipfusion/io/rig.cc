@@ -293,13 +293,29 @@ void check_replaces_only_format(const std::filesystem::path& path, const char* f
   };
   if (!fs::is_regular_file(path, ec)) refuse("is not a plain file");
   // A rig of the most cameras is tens of kB: what is far larger (a video) is not read to say so.
-  if (fs::file_size(path, ec) > (std::uintmax_t{64} << 20)) refuse("is over 64 MB");
-  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) refuse("cannot be measured (" + ec.message() + ")");
+  if (size > (std::uintmax_t{64} << 20)) refuse("is over 64 MB");
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = read_file_bytes(path);
+  } catch (const std::exception&) {
+    refuse("cannot be read");
+  }
   const json found = json::parse(bytes.begin(), bytes.end(), nullptr, /*allow_exceptions=*/false);
-  if (found.is_discarded() || !found.is_object()) refuse("is there and is not JSON");
+  if (found.is_discarded()) refuse("is there and is not JSON");
+  if (!found.is_object()) refuse("is JSON but not an object");
   const auto key = found.find("format");
-  if (key == found.end() || !key->is_string()) refuse("is a JSON file without a \"format\"");
+  if (key == found.end()) refuse("is a JSON file without a \"format\"");
+  if (!key->is_string()) refuse("has a \"format\" that is not a string");
   if (key->get<std::string>() != format) refuse("is a \"" + printable_excerpt(key->get<std::string>(), 40) + "\" file");
+  // What makes it one: cameras with poses, or an intrinsics object. `info --json` names the rig's
+  // format in a report about a capture, whose cameras have no world_from_depth.
+  const bool rig = std::string_view(format) == kRigFormat;
+  const auto body = found.find(rig ? "cameras" : "intrinsics");
+  const bool has_body = body != found.end() && (rig ? body->is_array() && (body->empty() || (body->front().is_object() && body->front().contains("world_from_depth")))
+                                                    : body->is_object());
+  if (!has_body) refuse(rig ? "has no cameras with world_from_depth (a report about a rig?)" : "has no \"intrinsics\" object");
 }
 
 std::string format_rig(const Rig& rig) {

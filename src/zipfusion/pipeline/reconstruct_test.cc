@@ -141,7 +141,7 @@ std::pair<Rig, FrameSet> samba_frame_with_true_poses(int frame) {
 
 // --min-component drops the pieces under its size and nothing else: on samba-4cam frame 0
 // unfiltered, the specks of noise at silhouettes (over a hundred pieces) go and every piece left
-// has at least 50 triangles; the large pieces are the same triangles as without it.
+// has at least 50 triangles, and the triangles left are those of the large pieces.
 TEST(Reconstruct, SmallPiecesAreDroppedWhenAsked) {
   const auto [rig, frames] = samba_frame_with_true_poses(0);
   FrameReconstructor all_pieces(rig, {.mode = ReconstructMode::kZipper, .bilateral = false});
@@ -159,6 +159,11 @@ TEST(Reconstruct, SmallPiecesAreDroppedWhenAsked) {
   EXPECT_EQ(large.mesh.triangle_count() + small_triangles, all.mesh.triangle_count());
   EXPECT_EQ(after.count(), before.count() - small_pieces);
   for (const int n : after.triangle_counts) EXPECT_GE(n, 50);
+  std::vector<Eigen::Vector3i> large_triangles;
+  for (size_t i = 0; i < all.mesh.triangles.size(); ++i) {
+    if (before.triangle_counts[before.triangle_component[i]] >= 50) large_triangles.push_back(all.mesh.triangles[i]);
+  }
+  EXPECT_EQ(large.mesh.triangles, large_triangles);
 }
 
 // The seams fold none of their triangles over their neighbours (count_folded_edges:
