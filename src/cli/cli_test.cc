@@ -367,27 +367,41 @@ TEST_F(Cli, ASecondRunIntoAFolderInUseIsRefused) {
   EXPECT_FALSE(fs::exists(out / "000000.ply"));
 }
 
+// Runs `reconstruct ARGS --out OUT` on samba-4cam as a background job of bash (which ignores
+// SIGINT for it) after `prelude`, sends `signal` once `first_mesh` is in the staging folder (the
+// handler is in place by then) and waits: the exit status, and stderr. An exit status of -2: the
+// run had ended before the signal went.
+struct SignalledRun {
+  int status = -1;
+  std::string err;
+};
+SignalledRun reconstruct_and_signal(const fs::path& dir, const std::string& args, const fs::path& out, const std::string& first_mesh,
+                                    const std::string& signal, const std::string& prelude = "") {
+  const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
+  const std::string script = prelude + std::string(ZF_BINARY) + " reconstruct " + samba.string() + " " + args + " --out " + out.string() +
+                             " > " + (dir / "stdout").string() + " 2> " + (dir / "stderr").string() +
+                             " & p=$!; for i in $(seq 1000); do ls " + out.string() + "/.zipfusion-staging-*/" + first_mesh +
+                             " > /dev/null 2>&1 && break; sleep 0.01; done; if kill -" + signal + " $p; then wait $p; echo $?; else echo -2; fi > " +
+                             (dir / "status").string();
+  EXPECT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
+  SignalledRun run;
+  std::ifstream status_file(dir / "status");
+  status_file >> run.status;
+  std::ifstream err_file(dir / "stderr");
+  run.err.assign(std::istreambuf_iterator<char>(err_file), std::istreambuf_iterator<char>());
+  return run;
+}
+
 // Ctrl-C (SIGINT) during a capture's reconstruction keeps the meshes made, each whole, with a
 // stats.json that lists them and says the run was interrupted; the exit status is 130. Meshes of
-// an earlier run for frames it did not reach go (eval would measure them with this run's).
+// an earlier run for frames it did not reach go (eval would measure them with this run's). The
+// run is a script's background job, for which bash ignores SIGINT: it catches it all the same.
 TEST_F(Cli, AnInterruptedRunKeepsWholeMeshesAndSaysSo) {
   const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
   const fs::path out = dir_ / "out";
   ASSERT_EQ(run("reconstruct " + samba.string() + " --frames 36:40 --register off --out " + out.string()).exit_code, 0);
   ASSERT_TRUE(fs::exists(out / "000039.ply"));
-  // The signal goes once the first mesh is in the staging folder (the handler is in place by then).
-  const std::string script = std::string(ZF_BINARY) + " reconstruct " + samba.string() + " --register off --out " + out.string() +
-                             " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() +
-                             " & p=$!; for i in $(seq 1000); do ls " + out.string() +
-                             "/.zipfusion-staging-*/000000.ply > /dev/null 2>&1 && break; sleep 0.01; done; kill -INT $p; wait $p; echo $? > " +
-                             (dir_ / "status").string();
-  // A background job of bash, which ignores SIGINT for it: the run catches it all the same.
-  ASSERT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
-  std::ifstream status_file(dir_ / "status");
-  int status = -1;
-  status_file >> status;
-  std::ifstream err_file(dir_ / "stderr");
-  const std::string err((std::istreambuf_iterator<char>(err_file)), std::istreambuf_iterator<char>());
+  const auto [status, err] = reconstruct_and_signal(dir_, "--register off", out, "000000.ply", "INT");
   ASSERT_EQ(status, 130) << err;
   EXPECT_EQ(err.rfind("reconstruct: stopped by a signal after ", 0), 0u) << err;
   std::ifstream stats_file(out / "stats.json");
@@ -410,21 +424,10 @@ TEST_F(Cli, AnInterruptedRunKeepsWholeMeshesAndSaysSo) {
 // A SIGHUP the run started with ignored stays ignored: nohup's (the run outlives its terminal).
 // The run goes on to the end, where SIGHUP used to stop it.
 TEST_F(Cli, NohupsSighupStaysIgnored) {
-  const fs::path samba = fs::path(ZF_SOURCE_DIR) / ".." / "shared" / "data" / "samba-4cam";
   const fs::path out = dir_ / "out";
-  const std::string script = "trap \"\" HUP; " + std::string(ZF_BINARY) + " reconstruct " + samba.string() +
-                             " --frames 30:40 --register off --out " + out.string() + " > " + (dir_ / "stdout").string() + " 2> " +
-                             (dir_ / "stderr").string() + " & p=$!; for i in $(seq 1000); do ls " + out.string() +
-                             "/.zipfusion-staging-*/000030.ply > /dev/null 2>&1 && break; sleep 0.01; done; kill -HUP $p || echo gone > " +
-                             (dir_ / "unsent").string() + "; wait $p; echo $? > " + (dir_ / "status").string();
-  ASSERT_EQ(std::system(("bash -c '" + script + "'").c_str()), 0);
-  std::ifstream status_file(dir_ / "status");
-  int status = -1;
-  status_file >> status;
-  std::ifstream err_file(dir_ / "stderr");
-  const std::string err((std::istreambuf_iterator<char>(err_file)), std::istreambuf_iterator<char>());
+  const auto [status, err] = reconstruct_and_signal(dir_, "--frames 30:40 --register off", out, "000030.ply", "HUP", "trap \"\" HUP; ");
+  ASSERT_NE(status, -2) << "the run ended before the signal was sent";
   ASSERT_EQ(status, 0) << err;
-  ASSERT_FALSE(fs::exists(dir_ / "unsent")) << "the run ended before the signal was sent";
   std::ifstream stats_file(out / "stats.json");
   const nlohmann::json stats = nlohmann::json::parse(stats_file);
   EXPECT_FALSE(stats.contains("interrupted") && stats["interrupted"].get<bool>()) << stats.dump();
