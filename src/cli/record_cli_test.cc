@@ -275,7 +275,6 @@ TEST_F(RecordCli, CtrlCStopsCleanlyWithAValidCapture) {
   ASSERT_GE(pid, 0);
   if (pid == 0) {
     setpgid(0, 0);  // a process group of its own, like a shell job: Ctrl-C reaches all of it
-    signal(SIGINT, SIG_DFL);  // as from a terminal, also where the tests run with SIGINT ignored
     std::freopen((dir_ / "stdout").c_str(), "w", stdout);
     std::freopen((dir_ / "stderr").c_str(), "w", stderr);
     const std::string dump = (kShared / "long").string(), out = capture.string();

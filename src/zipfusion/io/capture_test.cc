@@ -238,9 +238,7 @@ TEST(StagedFolder, FilesAppearTogetherOrNotAtAll) {
   if (gone == 0) ::_exit(0);
   ASSERT_GT(gone, 0);
   ASSERT_EQ(::waitpid(gone, nullptr, 0), gone);
-  char host[256] = {};
-  ASSERT_EQ(::gethostname(host, sizeof host - 1), 0);
-  const fs::path killed = out / (".zipfusion-staging-" + std::string(host) + "-" + std::to_string(gone));
+  const fs::path killed = out / (".zipfusion-staging-" + host_name() + "-" + std::to_string(gone));
   const fs::path elsewhere = out / (".zipfusion-staging-another.host-" + std::to_string(gone));  // a run on another machine
   fs::create_directories(killed / "x");
   fs::create_directories(elsewhere / "x");

@@ -286,15 +286,16 @@ Rig read_rig(const std::filesystem::path& path) {
 void check_replaces_only_format(const std::filesystem::path& path, const char* format, std::string_view option) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::exists(path, ec) || (fs::is_regular_file(path, ec) && fs::file_size(path, ec) == 0 && !ec)) return;
+  if (!fs::exists(path, ec)) return;
   auto refuse = [&](const std::string& what) {
     throw InvalidInput(std::string(option) + ": " + path.string() + " " + what + ", not a \"" + format +
                        "\" file to replace; name a new file, or remove that one first");
   };
   if (!fs::is_regular_file(path, ec)) refuse("is not a plain file");
-  // A rig of the most cameras is tens of kB: what is far larger (a video) is not read to say so.
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec) refuse("cannot be measured (" + ec.message() + ")");
+  if (size == 0) return;  // an empty file (mktemp's) is free
+  // A rig of the most cameras is tens of kB: what is far larger (a video) is not read to say so.
   if (size > (std::uintmax_t{64} << 20)) refuse("is over 64 MB");
   std::vector<std::uint8_t> bytes;
   try {
