@@ -52,6 +52,12 @@ for filter in bilateral none; do
     --out "$OUT/meshes/$name" > /dev/null
   "$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
 done
+# Pieces of fewer than 50 triangles dropped (`--min-component 50`), as bench's "zipper min component 50".
+name=zipper_none_min50
+rm -rf "$OUT/meshes/$name"
+"$ZF" reconstruct "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --register off --frames "0:$FRAMES" --filter none --min-component 50 \
+  --out "$OUT/meshes/$name" > /dev/null
+"$ZF" eval "$SAMBA" "$OUT/meshes/$name" --frames "0:$FRAMES" --json > "$OUT/eval_$name.json"
 
 if [[ -x "$BUILD_DIR/zf_open3d_compare" ]]; then
   step "Open3D TSDF (two volumes; 10 mm, 5 mm) and Poisson, same frames"

@@ -27,7 +27,7 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
   EXPECT_EQ(report["machine"]["os"].get<std::string>().rfind("Linux ", 0), 0u) << report["machine"]["os"];
   std::map<std::string, nlohmann::json> configs;
   for (const auto& c : report["configs"]) configs[c["name"]] = c;
-  ASSERT_EQ(configs.size(), 12u);
+  ASSERT_EQ(configs.size(), 13u);
   for (const auto& [name, c] : configs) {
     SCOPED_TRACE(name);
     const double total = c["ms"]["total"]["median"];
@@ -70,6 +70,10 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
     EXPECT_LT(share, 0.35) << lod;
   }
   EXPECT_GT(configs["zipper+filter lod 1"]["ms"]["filter"]["median"].get<double>(), 0);
+  // Dropping small pieces only removes triangles, and only after zippering.
+  EXPECT_LE(configs["zipper min component 50"]["triangles"].get<double>(), configs["zipper"]["triangles"].get<double>());
+  EXPECT_EQ(configs["zipper min component 50"]["ms"]["filter"]["median"].get<double>(), 0);
+  EXPECT_GT(configs["zipper min component 50"]["ms"]["clipping"]["median"].get<double>(), 0);
   EXPECT_EQ(report["soak"]["frames"], 3);
   EXPECT_EQ(report["soak"]["early_frames"], 3);
   // Buffers are sized by the first frame set: three more must not grow the resident size.
