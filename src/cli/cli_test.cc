@@ -83,6 +83,8 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --subject " + (dir_ / "none%06d.ply").string(), "none000000.ply", 3},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-smoothing 5", "zipfusion: error: --seam-smoothing: must be in [0, 4] pixels"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --seam-fairing 9", "zipfusion: error: --seam-fairing: must be in [0, 8] rounds"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --floor-noise -1",
+       "zipfusion: error: --floor-noise: must be in [0, 10] standard deviations"},
       // The largest int: one frame past it would overflow.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --frames 2147483647",
        "--frames: \"2147483647\" reaches past the last frame of a capture with 1 frames"},

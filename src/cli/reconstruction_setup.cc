@@ -35,6 +35,11 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--min-depth", o.foreground.min_depth_m, "Nearest depth kept, metres (>= 0)")->capture_default_str();
   cmd->add_option("--max-depth", o.foreground.max_depth_m, "Farthest depth kept, metres (finite, above --min-depth)")->capture_default_str();
   cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
+  cmd->add_option("--floor-noise", o.foreground.floor_noise_sigmas,
+                  "Raise the volume's bottom, pixel by pixel, until it clears this many standard deviations of the pixel's height noise "
+                  "(Kinect v1's depth noise along its ray; the floor taken 2 cm below the bottom): a high camera's floor noise stays out; "
+                  "0 = the bottom as rig.json puts it; in [0, 10]")
+      ->capture_default_str();
   cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m,
                   "SDC threshold: largest depth difference inside a triangle, metres in (0, 1), for a focal length of 580 px (a Kinect at "
                   "640x480); a camera with a shorter one f (at --lod, the subsampled one) takes it times 580/f")
@@ -86,6 +91,7 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
   return {{"min_depth_m", options.foreground.min_depth_m},
           {"max_depth_m", options.foreground.max_depth_m},
           {"crop_to_volume", options.foreground.crop_to_volume},
+          {"floor_noise_sigmas", options.foreground.floor_noise_sigmas},
           {"lod", options.depth_level},
           {"max_depth_jump_m", options.sdc.max_depth_jump_m},  // for 580 px; each camera's is sdc_depth_jump of it
           {"max_depth_jump_growth_m", options.sdc.growth_depth_m},

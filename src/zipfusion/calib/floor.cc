@@ -38,8 +38,6 @@ constexpr double kSteepAxis = 0.2;  // horizontal length of the unit optical axi
 // Otherwise (one camera, or cameras looking the same way) the origin goes this far ahead of
 // the cameras, where a subject stands.
 constexpr double kOriginAheadM = 2.0;
-// The volume starts this high above the floor, so the floor stays background (synth's choice).
-constexpr double kVolumeFloorClearanceM = 0.02;
 // The automatic volume's half width, as a share of the nearest camera's horizontal distance:
 // samba-4cam's box is ±1 m inside a ring of 2 m, and a Kinect sees nothing nearer than ~0.5 m.
 constexpr double kVolumeShareOfRing = 0.5;

@@ -13,6 +13,7 @@ namespace zipfusion {
 void ForegroundOptions::validate() const {
   if (!(min_depth_m >= 0 && std::isfinite(min_depth_m))) throw InvalidInput("--min-depth: must be a finite depth >= 0 metres");
   if (!(max_depth_m > min_depth_m && std::isfinite(max_depth_m))) throw InvalidInput("--max-depth: must be finite and exceed --min-depth");
+  if (!(floor_noise_sigmas >= 0 && floor_noise_sigmas <= 10)) throw InvalidInput("--floor-noise: must be in [0, 10] standard deviations");
 }
 
 namespace {
@@ -24,15 +25,17 @@ ZF_ROW_KERNEL void foreground_row(const unsigned short* raw, int width, int v, c
   const Eigen::Vector3f origin = params.world_rays.origin, du = params.world_rays.ray_du;
   const float lo_x = params.box_min.x(), lo_y = params.box_min.y(), lo_z = params.box_min.z();
   const float hi_x = params.box_max.x(), hi_y = params.box_max.y(), hi_z = params.box_max.z();
+  const float floor_sigmas = params.floor_noise_sigmas;
   const int crop = params.crop ? 1 : 0;
   for (int u = 0; u < width; ++u) {
     const float z = static_cast<float>(raw[u]) * params.depth_unit_m;
     const float uf = static_cast<float>(u);
     const float x = origin.x() + z * (row_ray.x() + uf * du.x());
     const float y = origin.y() + z * (row_ray.y() + uf * du.y());
-    const float w = origin.z() + z * (row_ray.z() + uf * du.z());
+    const float ray_z = row_ray.z() + uf * du.z();
+    const float w = origin.z() + z * ray_z;
     const int in_box = static_cast<int>(x >= lo_x) & static_cast<int>(x <= hi_x) & static_cast<int>(y >= lo_y) & static_cast<int>(y <= hi_y) &
-                       static_cast<int>(w >= lo_z) & static_cast<int>(w <= hi_z);
+                       static_cast<int>(w >= lo_z + floor_lift_m(z, ray_z, floor_sigmas)) & static_cast<int>(w <= hi_z);
     const int keep = static_cast<int>(raw[u] != 0) & static_cast<int>(z >= params.min_depth_m) & static_cast<int>(z <= params.max_depth_m) &
                      (in_box | (1 - crop));
     out[u] = static_cast<float>(keep) * z;
@@ -47,6 +50,7 @@ ForegroundParams::ForegroundParams(double depth_unit, const CameraModel& camera,
       min_depth_m(static_cast<float>(options.min_depth_m)),
       max_depth_m(static_cast<float>(options.max_depth_m)),
       crop(options.crop_to_volume && volume.has_value()),
+      floor_noise_sigmas(static_cast<float>(options.floor_noise_sigmas)),
       world_rays(camera.depth_intrinsics, camera.world_from_depth.cast<float>()) {
   if (crop) {
     box_min = volume->min.cast<float>();

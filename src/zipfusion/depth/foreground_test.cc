@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <cstdint>
+#include <iostream>
 #include <random>
+#include <vector>
 
 namespace zipfusion {
 namespace {
@@ -28,7 +30,8 @@ TEST(Foreground, KeepsTheWorkingRangeInsideTheVolume) {
   raw(1, 0) = 399;   // nearer than 0.4 m
   raw(2, 0) = 4501;  // beyond 4.5 m
   Image<float> out;
-  extract_foreground(raw, 0.001, camera, volume, {}, out);
+  const ForegroundOptions options{.floor_noise_sigmas = 0};  // the box as given (the lift: below)
+  extract_foreground(raw, 0.001, camera, volume, options, out);
   ASSERT_EQ(out.width, 64);
   ASSERT_EQ(out.height, 48);
   EXPECT_EQ(out(0, 0), 0.0f);
@@ -45,7 +48,7 @@ TEST(Foreground, KeepsTheWorkingRangeInsideTheVolume) {
       if (on_face) continue;
       EXPECT_EQ(out(u, v), expected ? z : 0.0f) << u << "," << v;
       // The row kernel agrees with the element function.
-      EXPECT_EQ(out(u, v), foreground_depth(u, v, raw(u, v), ForegroundParams(0.001, camera, volume, {}))) << u << "," << v;
+      EXPECT_EQ(out(u, v), foreground_depth(u, v, raw(u, v), ForegroundParams(0.001, camera, volume, options))) << u << "," << v;
       kept += expected;
     }
   }
@@ -63,6 +66,71 @@ TEST(Foreground, WithoutCropOnlyTheRangeCounts) {
   }
 }
 
+// A camera 2.6 m up, 3 m from the volume's axis, looking down at (0, 0, 0.9) over a floor at z = 0
+// (depth with the Kinect's axial noise) or over a noise-free platform `platform_m` high.
+struct HighCameraView {
+  CameraModel camera;
+  DepthImage raw;
+  std::vector<bool> inside;  // the pixel's true point lies within the volume's x and y
+};
+HighCameraView high_camera_view(const Box3d& volume, double platform_m) {
+  HighCameraView view;
+  view.camera.depth_intrinsics = {.width = 160, .height = 120, .fx = 145, .fy = 145, .cx = 79.5, .cy = 59.5};
+  view.camera.world_from_depth = look_at({3.0, 0.0, 2.6}, {0, 0, 0.9});
+  view.raw = DepthImage(160, 120, 0);
+  view.inside.assign(view.raw.size(), false);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> standard_normal;
+  const Eigen::Vector3d origin = view.camera.world_from_depth.translation();
+  for (int v = 0; v < 120; ++v) {
+    for (int u = 0; u < 160; ++u) {
+      // The world point at camera depth 1 on this pixel's ray: depth z reaches origin + z·ray.
+      const Eigen::Vector3d ray = view.camera.world_from_depth * unproject(view.camera.depth_intrinsics, u, v, 1.0f).cast<double>() - origin;
+      if (ray.z() >= 0) continue;
+      const double z = (platform_m - origin.z()) / ray.z();
+      const Eigen::Vector3d p = origin + z * ray;
+      view.inside[v * 160 + u] = p.x() > volume.min.x() && p.x() < volume.max.x() && p.y() > volume.min.y() && p.y() < volume.max.y();
+      const double noisy = platform_m > 0 ? z : z + kinect_axial_sigma_m(z) * standard_normal(rng);
+      if (noisy > 0.4 && noisy < 4.5) view.raw(u, v) = static_cast<unsigned short>(std::lround(noisy * 1000));
+    }
+  }
+  return view;
+}
+
+// The floor's noise, seen from high up, lifts a share of it above the volume's fixed 2 cm
+// clearance; the bottom raised to 3σ of each pixel's height noise keeps it out, while a surface
+// 6 cm up (a shoe's top) stays in, and the row kernel agrees with the element function.
+TEST(Foreground, AHighCamerasFloorNoiseStaysBelowTheVolume) {
+  const Box3d volume{{-1, -1, kVolumeFloorClearanceM}, {1, 1, 2.2}};
+  const HighCameraView floor = high_camera_view(volume, 0.0);
+  const HighCameraView platform = high_camera_view(volume, 0.06);
+  auto kept_share = [&](const HighCameraView& view, double sigmas) {
+    const ForegroundOptions options{.floor_noise_sigmas = sigmas};
+    Image<float> out;
+    extract_foreground(view.raw, 0.001, view.camera, volume, options, out);
+    const ForegroundParams params(0.001, view.camera, volume, options);
+    int inside = 0, kept = 0;
+    for (int v = 0; v < 120; ++v) {
+      for (int u = 0; u < 160; ++u) {
+        EXPECT_EQ(out(u, v), foreground_depth(u, v, view.raw(u, v), params)) << u << "," << v;
+        if (!view.inside[v * 160 + u] || view.raw(u, v) == 0) continue;
+        ++inside;
+        kept += out(u, v) > 0;
+      }
+    }
+    EXPECT_GT(inside, 3000);  // the volume's floor fills a good part of the view
+    std::cout << "sigmas " << sigmas << ": " << kept << " of " << inside << " kept\n";
+    return static_cast<double>(kept) / inside;
+  };
+  EXPECT_GT(kept_share(floor, 0), 0.03);  // measured: 348 of 3 649
+  EXPECT_LT(kept_share(floor, 3), 0.005);  // 8 (a one-sided 3σ tail is 0.0013, with the millimetre steps more)
+  EXPECT_EQ(kept_share(platform, 3), 1.0);
+  // The lift is what 3σ exceeds the clearance by: none for a ring at Kinect height looking level
+  // at 2.8 m (σ 12 mm, half of it in height), and none asked for.
+  EXPECT_EQ(floor_lift_m(2.8f, -0.5f, 3.0f), 0.0f);
+  EXPECT_GT(floor_lift_m(3.6f, -0.75f, 3.0f), 0.02f);
+  EXPECT_EQ(floor_lift_m(4.5f, -1.0f, 0.0f), 0.0f);
+}
 
 // The true surface of noisy_surface: without `step` a plane facing the camera (a tap that strays
 // past a row's end into the next row lies on the same surface, and would be counted); with it, a

@@ -22,6 +22,9 @@ inline constexpr int kMostFrames = 1000000;
 //! Camera positions and the capture volume lie within this many metres of the origin on each
 //! axis (a rig is a room, not a map; beyond, metres were probably millimetres).
 inline constexpr double kMostWorldM = 1000;
+//! Where a rig's world has its floor at z = 0 (`calibrate floor`, `synth`), the capture volume's
+//! bottom lies this far above it, so that the floor stays background (FORMATS.md's example too).
+inline constexpr double kVolumeFloorClearanceM = 0.02;
 
 struct CameraModel {
   std::string name;                           // also the camera's folder in the capture

@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 #include <numbers>
 
+#include "zipfusion/core/depth_noise.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
 
@@ -93,7 +94,7 @@ std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k
     Vec3 p, n;
     const int u = (i % grid_width) * stride, v = (i / grid_width) * stride;
     const float z = depth(std::min(u, depth.width - 1), std::min(v, depth.height - 1));
-    const float max_jump = 2.0f * step * z / static_cast<float>(k.fx) * std::tan(std::acos(cos_view)) + 3 * kinect_axial_sigma(z);
+    const float max_jump = 2.0f * step * z / static_cast<float>(k.fx) * std::tan(std::acos(cos_view)) + 3 * kinect_axial_sigma_m(z);
     const bool ok = o.surface == RegistrationSurface::kDisparityFit
                         ? disparity_fit_sample(i, depth.data.data(), depth.width, depth.height, stride, fit_radius,
                                                static_cast<float>(o.fit_gate_m), k, cos_view, &p, &n)
@@ -101,7 +102,7 @@ std::unique_ptr<Cloud> make_cloud(const Image<float>& depth, const Intrinsics& k
     if (!ok) continue;
     cloud->points.push_back(p);
     cloud->normals.push_back(n);
-    cloud->sigma.push_back(kinect_axial_sigma(p.z()));
+    cloud->sigma.push_back(kinect_axial_sigma_m(p.z()));
   }
   if (cloud->points.empty()) return cloud;
   cloud->adaptor.points = &cloud->points;

@@ -114,9 +114,6 @@ std::vector<RelativePoseError> relative_pose_errors(const std::vector<Rigid3d>& 
 //! cameras, so possibly of different cameras).
 RelativePoseError worst_relative_pose_error(const std::vector<Rigid3d>& world_from_depth, const std::vector<Rigid3d>& true_world_from_depth);
 
-//! Kinect v1 axial noise σ(z) = 1.2 mm + 1.9 mm·(z − 0.4 m)² (Nguyen, Izadi & Lovell 2012), metres.
-inline float kinect_axial_sigma(float z) { return 0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f); }
-
 //! Element function: sample `index` of a depth map subsampled by `stride` (grid width
 //! ceil(width/stride)). Writes the point and its unit normal (towards the camera) in the camera
 //! frame and returns true when the depth there and at the four neighbours `step` pixels away is

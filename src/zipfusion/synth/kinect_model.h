@@ -18,6 +18,7 @@
 #include <cstdint>
 
 #include "zipfusion/core/camera.h"
+#include "zipfusion/core/depth_noise.h"
 #include "zipfusion/core/image.h"
 
 namespace zipfusion {
@@ -41,9 +42,6 @@ struct KinectNoiseOptions {
   static KinectNoiseOptions none();
   void validate() const;  // throws InvalidInput naming the field
 };
-
-//! Axial standard deviation of Kinect v1 depth at distance z (metres), Nguyen et al. 2012.
-inline double kinect_axial_sigma_m(double z) { return 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4); }
 
 //! Depth step between adjacent disparity levels at z: z²·step/(f·b), metres.
 inline double kinect_quantization_step_m(double z, double focal_px, double baseline_m, double step_px) {

@@ -124,13 +124,13 @@ void SynthOptions::validate() const {
 }
 
 Box3d synthetic_capture_volume(const TriangleMesh& first_subject) {
-  Box3d box{{-1.0, -1.0, 0.02}, {1.0, 1.0, 2.2}};
+  Box3d box{{-1.0, -1.0, kVolumeFloorClearanceM}, {1.0, 1.0, 2.2}};
   for (const Eigen::Vector3f& p : first_subject.positions) {
     const Eigen::Vector3d q = p.cast<double>();
     box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));
     box.max = box.max.cwiseMax(q + Eigen::Vector3d::Constant(0.3));
   }
-  box.min.z() = std::max(box.min.z(), 0.02);  // the floor stays outside
+  box.min.z() = std::max(box.min.z(), kVolumeFloorClearanceM);  // the floor stays outside
   return box;
 }
 
