@@ -255,13 +255,9 @@ IntrinsicResult calibrate_intrinsics(const std::vector<std::optional<std::vector
                   k.distortion[0], k.distortion[1], 100.0 * fold);
     throw InvalidInput(problem);
   }
-  if (const auto [least, most] = distortion_stretch_range(k); !stretch_of_a_lens({least, most})) {
-    char problem[320];
-    std::snprintf(problem, sizeof problem,
-                  "calibrate intrinsics: the fitted distortion moves the image's points to %.3g–%.3g times their distance from the principal "
-                  "point (a lens: within 1/3–3 times); add views with the board near the corners, or leave distortion out (--no-distortion)",
-                  least, most);
-    throw InvalidInput(problem);
+  if (const auto stretch = distortion_stretch_range(k); !stretch_of_a_lens(stretch)) {
+    throw InvalidInput("calibrate intrinsics: the fitted distortion " + distortion_stretch_problem(stretch) +
+                       "; add views with the board near the corners, or leave distortion out (--no-distortion)");
   }
   return result;
 }

@@ -10,7 +10,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <string>
 #include <utility>
 
 namespace zipfusion {
@@ -94,6 +96,16 @@ inline std::pair<double, double> distortion_stretch_range(const Intrinsics& k) {
 //! Whether a distortion_stretch_range lies within kMostDistortionStretch either way.
 inline bool stretch_of_a_lens(const std::pair<double, double>& range) {
   return range.first >= 1 / kMostDistortionStretch && range.second <= kMostDistortionStretch;
+}
+
+//! What a distortion_stretch_range beyond a lens's does, for the refusals of rig.json's reader and
+//! of `calibrate intrinsics`: "moves points of the image to 0.2–1.01 times their distance …".
+inline std::string distortion_stretch_problem(const std::pair<double, double>& range) {
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "moves points of the image to %.3g–%.3g times their distance from the principal point (a lens: within 1/%g–%g times)",
+                range.first, range.second, kMostDistortionStretch, kMostDistortionStretch);
+  return text;
 }
 
 //! Pixel of a point in the camera frame. Precondition: p.z() > 0. Distortion applied when present.

@@ -113,13 +113,7 @@ void check_distortion_unfolded(const Fields& f, const Intrinsics& k) {
                   k.distortion[0], k.distortion[1], k.distortion[4], 100.0 * fold);
     f.fail(f.field("distortion"), where);
   }
-  const auto [least, most] = distortion_stretch_range(k);
-  if (!stretch_of_a_lens({least, most})) {
-    char where[200];
-    std::snprintf(where, sizeof where,
-                  "moves points of the image to %.3g–%.3g times their distance from the principal point (a lens: within 1/3–3 times)", least, most);
-    f.fail(f.field("distortion"), where);
-  }
+  if (const auto stretch = distortion_stretch_range(k); !stretch_of_a_lens(stretch)) f.fail(f.field("distortion"), distortion_stretch_problem(stretch));
 }
 
 Intrinsics parse_intrinsics(const Fields& f) {
