@@ -38,10 +38,15 @@ def run_os(report):
 
 
 def config(report, name):
-    for c in report["configs"]:
-        if c["name"] == name:
-            return c
-    sys.exit(f"bench_report: configuration '{name}' missing from the bench results")
+    found = optional_config(report, name)
+    if found is None:
+        sys.exit(f"bench_report: configuration '{name}' missing from the bench results")
+    return found
+
+
+def optional_config(report, name):
+    """A configuration that results of an older `zipfusion bench` may lack: None then."""
+    return next((c for c in report["configs"] if c["name"] == name), None)
 
 
 def ms(entry):
@@ -253,11 +258,12 @@ def main(folder):
             "triangles, about as many as Open3D's TSDF at 10 mm gives (Table II below).", ""]
     out += stage_table(samba, ["zipper lod 1", "zipper+filter lod 1"])
     out.append("")
-    small, two_threads = config(samba, "zipper min component 50"), config(samba, "zipper")
-    out += [f"Dropping the pieces of fewer than 50 triangles after zippering (`--min-component 50`, off by default; "
-            f"\"zipper min component 50\", otherwise as \"zipper\"): assembly {ms(small['ms']['assemble'])} ms against "
-            f"{ms(two_threads['ms']['assemble'])}, total {ms(small['ms']['total'])} against {ms(two_threads['ms']['total'])}, "
-            f"{small['triangles']:.0f} triangles against {two_threads['triangles']:.0f} (quality in Table II below).", ""]
+    small, two_threads = optional_config(samba, "zipper min component 50"), config(samba, "zipper")
+    if small:
+        out += [f"Dropping the pieces of fewer than 50 triangles after zippering (`--min-component 50`, off by default; "
+                f"\"zipper min component 50\", otherwise as \"zipper\"): assembly {ms(small['ms']['assemble'])} ms against "
+                f"{ms(two_threads['ms']['assemble'])}, total {ms(small['ms']['total'])} against {ms(two_threads['ms']['total'])}, "
+                f"{small['triangles']:.0f} triangles against {two_threads['triangles']:.0f} (quality in Table II below).", ""]
 
     one = config(samba, "zipper 1 thread")
     two = config(samba, "zipper")
@@ -303,9 +309,9 @@ def main(folder):
               "separate_bilateral5x5": "separate+5x5 filter", "separate_none": "separate",
               "zipper_none_min50": "zipper min component 50"}
     for name, label in timing.items():
-        evaluation = load(folder, f"eval_{name}.json")
-        if evaluation:
-            rows.append((f"zipfusion {label}", evaluation, config(samba, label)["ms"]["total"]["median"]))
+        evaluation, timed = load(folder, f"eval_{name}.json"), optional_config(samba, label)
+        if evaluation and timed:
+            rows.append((f"zipfusion {label}", evaluation, timed["ms"]["total"]["median"]))
     tsdf_10mm = []
     for volume, prefix in [("ScalableTSDFVolume", "open3d_"), ("VoxelBlockGrid", "open3d_block_")]:
         for voxel in ["0.01", "0.005"]:

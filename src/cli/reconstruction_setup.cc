@@ -37,8 +37,8 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_flag("--no-volume-crop", args.no_volume_crop, "Keep depth outside the rig's capture volume");
   cmd->add_option("--floor-noise", o.foreground.floor_noise_sigmas,
                   "Raise the volume's bottom, pixel by pixel, until it clears this many standard deviations of the pixel's height noise "
-                  "(Kinect v1's depth noise along its ray; the floor taken 2 cm below the bottom): a high camera's floor noise stays out; "
-                  "0 = the bottom as rig.json puts it; in [0, 10]")
+                  "(Kinect v1's depth noise along its ray; a z-up world, the floor taken 2 cm below the bottom): a high camera's floor noise "
+                  "stays out; 0 = the bottom as rig.json puts it; in [0, 10]")
       ->capture_default_str();
   cmd->add_option("--max-depth-jump", o.sdc.max_depth_jump_m,
                   "SDC threshold: largest depth difference inside a triangle, metres in (0, 1), for a focal length of 580 px (a Kinect at "

@@ -132,6 +132,47 @@ TEST(Foreground, AHighCamerasFloorNoiseStaysBelowTheVolume) {
   EXPECT_EQ(floor_lift_m(4.5f, -1.0f, 0.0f), 0.0f);
 }
 
+// The row kernel gives the element function's depth with the floor's lift on every kind of ray:
+// looking down, up, level (a row whose rays climb less than 1e-6 m a metre) and straight down.
+TEST(Foreground, RowKernelAgreesOnEveryRayWithTheFloorsLift) {
+  const Box3d volume{{-1, -1, kVolumeFloorClearanceM}, {1, 1, 2.2}};
+  struct Pose {
+    Eigen::Vector3d eye, target;
+  };
+  const Pose poses[] = {{{3.0, 0.0, 2.6}, {0, 0, 0.9}},      // down
+                        {{2.0, 0.0, 0.3}, {0, 0, 1.8}},      // up
+                        {{2.0, 0.0, 1.0}, {0, 0, 1.0}},      // level
+                        {{0.0, 0.0, 3.5}, {0.001, 0, 0}}};  // straight down
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> depth_mm(0, 5000);
+  for (const Pose& pose : poses) {
+    CameraModel camera;
+    camera.depth_intrinsics = {.width = 64, .height = 48, .fx = 60, .fy = 60, .cx = 31.5, .cy = 24};  // row 24 is level when the axis is
+    camera.world_from_depth = look_at(pose.eye, pose.target);
+    DepthImage raw(64, 48);
+    for (auto& d : raw.data) d = static_cast<unsigned short>(depth_mm(rng));
+    for (const double sigmas : {0.0, 3.0, 10.0}) {
+      const ForegroundOptions options{.floor_noise_sigmas = sigmas};
+      Image<float> out;
+      extract_foreground(raw, 0.001, camera, volume, options, out);
+      const ForegroundParams params(0.001, camera, volume, options);
+      int kept = 0;
+      for (int v = 0; v < 48; ++v) {
+        for (int u = 0; u < 64; ++u) {
+          ASSERT_EQ(out(u, v), foreground_depth(u, v, raw(u, v), params)) << pose.eye.transpose() << " sigmas " << sigmas << " at " << u << "," << v;
+          kept += out(u, v) > 0;
+        }
+      }
+      EXPECT_GT(kept, 50) << pose.eye.transpose();  // the volume is in view
+    }
+  }
+  EXPECT_NEAR(PixelRays(Intrinsics{.width = 64, .height = 48, .fx = 60, .fy = 60, .cx = 31.5, .cy = 24},
+                        look_at({2.0, 0.0, 1.0}, {0, 0, 1.0}).cast<float>())
+                  .row_ray(24)
+                  .z(),
+              0.0f, 1e-6f);
+}
+
 // The true surface of noisy_surface: without `step` a plane facing the camera (a tap that strays
 // past a row's end into the next row lies on the same surface, and would be counted); with it, a
 // slanted plane and a band of it 0.4 m or more farther away inside the image.

@@ -56,7 +56,7 @@ struct RegistrationOptions {
   int fit_radius_px = 3;           // pixels (full resolution): half-width of the disparity fit at the finest level (coarser: at least the stride)
   double fit_gate_m = 0.05;        // metres: window pixels farther in depth from the centre belong to another surface
   BilateralOptions filter;         // kBilateral only: paper's values
-  ForegroundOptions foreground;
+  ForegroundOptions foreground{.floor_noise_sigmas = 0};  // the floor is wanted here (below_volume_m), its noise too
   double below_volume_m = 0.3;     // metres: the volume crop reaches this far below the volume, so the floor (static, seen by all) pins the cameras' tilt
   bool floor_counts_once = true;   // the floor's correspondences (both points below the volume's min z, world z up; none without a volume) weigh 1/F over F frames: it is the same in every frame set
   int min_correspondences = 50;    // a pair with fewer over all its frames (before trimming; the floor's count 1/F) does not count
