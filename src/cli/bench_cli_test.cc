@@ -70,8 +70,9 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
     EXPECT_LT(share, 0.35) << lod;
   }
   EXPECT_GT(configs["zipper+filter lod 1"]["ms"]["filter"]["median"].get<double>(), 0);
-  // Dropping small pieces only removes triangles, and only after zippering.
-  EXPECT_LE(configs["zipper min component 50"]["triangles"].get<double>(), configs["zipper"]["triangles"].get<double>());
+  // Dropping small pieces removes triangles (the noisy synthetic rig has some: 455 of 96 251) and
+  // adds no filtering.
+  EXPECT_LT(configs["zipper min component 50"]["triangles"].get<double>(), configs["zipper"]["triangles"].get<double>());
   EXPECT_EQ(configs["zipper min component 50"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_GT(configs["zipper min component 50"]["ms"]["clipping"]["median"].get<double>(), 0);
   EXPECT_EQ(report["soak"]["frames"], 3);

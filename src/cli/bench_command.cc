@@ -231,8 +231,8 @@ void run_bench(const BenchArgs& args) {
   configs.back().options.depth_level = 1;
   configs.push_back({"zipper+filter lod 1", options(ReconstructMode::kZipper, true)});
   configs.back().options.depth_level = 1;
-  // `--min-component 50`: pieces of fewer than 50 triangles dropped after assembly (floor specks
-  // a high camera's noise lifts into the volume); its cost is in the assembly stage.
+  // `--min-component 50`: pieces of fewer than 50 triangles dropped after assembly (specks of
+  // noise); its cost is in the assembly stage.
   configs.push_back({"zipper min component 50", options(ReconstructMode::kZipper, false)});
   configs.back().options.min_component_triangles = 50;
 

@@ -44,9 +44,10 @@ struct ForegroundParams {
 //! whose world ray climbs `ray_z` metres per metre of depth (PixelRays, world z up). The depth's
 //! noise along the ray (kinect_axial_sigma_m) moves the point's height by σ·|ray_z|. The floor is
 //! taken to lie kVolumeFloorClearanceM below the bottom, as `calibrate floor` and `synth` put it,
-//! so the bottom rises by what `sigmas` times that noise exceeds the clearance. A camera 2.6 m up sees the floor 3.6 m away with a height noise of about 14 mm: a
-//! fixed 2 cm let 8 % of its floor into the volume, as specks around the subject. A ring at
-//! Kinect height keeps its bottom (3σ is about 1.5 cm there).
+//! so the bottom rises by what `sigmas` times that noise exceeds the clearance. A camera 2.6 m up
+//! sees the floor 3–4 m away with a height noise of about 14 mm: a fixed 2 cm let a tenth of its
+//! floor into the volume, as specks around the subject. A ring at Kinect height keeps its bottom
+//! where its subject stands (3σ is about 1.5 cm there; a few millimetres at the far corners).
 inline float floor_lift_m(float z, float ray_z, float sigmas) {
   return std::max(0.0f, sigmas * kinect_axial_sigma_m(z) * std::abs(ray_z) - static_cast<float>(kVolumeFloorClearanceM));
 }
