@@ -173,7 +173,7 @@ SynthResult write_wand_capture(const fs::path& out_dir, const SynthOptions& rig_
   SynthResult result;
   result.true_rig = make_ring_rig(rig_options);
   result.true_rig.frame_count = options.frames;
-  result.true_rig.volume = Box3d{{-1.0, -1.0, kVolumeFloorClearanceM}, {1.0, 1.0, 2.2}};  // samba-4cam's box
+  result.true_rig.volume = samba_capture_volume();
   result.rig = miscalibrate(result.true_rig, rig_options);
   const WandSequence sequence = make_wand_sequence(*result.true_rig.volume, options);
 

@@ -124,7 +124,7 @@ void SynthOptions::validate() const {
 }
 
 Box3d synthetic_capture_volume(const TriangleMesh& first_subject) {
-  Box3d box{{-1.0, -1.0, kVolumeFloorClearanceM}, {1.0, 1.0, 2.2}};
+  Box3d box = samba_capture_volume();
   for (const Eigen::Vector3f& p : first_subject.positions) {
     const Eigen::Vector3d q = p.cast<double>();
     box.min = box.min.cwiseMin(q - Eigen::Vector3d(0.3, 0.3, 0));

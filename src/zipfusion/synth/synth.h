@@ -49,8 +49,11 @@ Rig make_ring_rig(const SynthOptions& options);
 //! miscalibrate_deg about a random axis and miscalibrate_m in a random direction.
 Rig miscalibrate(const Rig& true_rig, const SynthOptions& options);
 
-//! The capture volume written to rig.json: samba-4cam's box (x, y in ±1 m, z in 0.02–2.2 m), grown
-//! to hold the subject's first frame with 0.3 m to spare; the floor stays below it.
+//! samba-4cam's capture volume: x, y in ±1 m, z from kVolumeFloorClearanceM (0.02) to 2.2 m.
+inline Box3d samba_capture_volume() { return {{-1.0, -1.0, kVolumeFloorClearanceM}, {1.0, 1.0, 2.2}}; }
+
+//! The capture volume written to rig.json: samba_capture_volume, grown to hold the subject's first
+//! frame with 0.3 m to spare; the floor stays below it.
 Box3d synthetic_capture_volume(const TriangleMesh& first_subject);
 
 //! The subject's true surface at a frame (world coordinates, coloured).
