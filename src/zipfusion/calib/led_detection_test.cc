@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/synth/calib_targets.h"
 
 namespace zipfusion {
@@ -90,12 +90,8 @@ TEST(LedDetection, IgnoresALitRoom) {
 }
 
 TEST(LedDetection, ValidateNamesTheField) {
-  try {
-    LedDetectionOptions{.min_dominance = 0.5}.validate();
-    FAIL();
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("min_dominance"), std::string::npos);
-  }
+  const std::string message = invalid_input_message([] { LedDetectionOptions{.min_dominance = 0.5}.validate(); });
+  EXPECT_NE(message.find("min_dominance"), std::string::npos) << message;
 }
 
 }  // namespace

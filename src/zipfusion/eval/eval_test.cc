@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/io/rig.h"
 #include "zipfusion/synth/synth.h"
@@ -330,12 +331,8 @@ TEST(Eval, ResultsDoNotDependOnThreads) {
 
 TEST(Eval, OptionsAreValidated) {
   const TriangleMesh s = square(0, 1);
-  try {
-    evaluate_frame(s, s, one_camera_rig(), std::nullopt, {.sample_spacing_m = 0});
-    FAIL() << "no exception";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("sample_spacing_m"), std::string::npos) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { evaluate_frame(s, s, one_camera_rig(), std::nullopt, {.sample_spacing_m = 0}); });
+  EXPECT_NE(message.find("sample_spacing_m"), std::string::npos) << message;
   EXPECT_THROW(EvalOptions({.completeness_threshold_m = -1}).validate(), InvalidInput);
   EXPECT_THROW(EvalOptions({.min_range_m = 2, .max_range_m = 1}).validate(), InvalidInput);
   EXPECT_THROW(EvalOptions({.min_component_triangles = 0}).validate(), InvalidInput);

@@ -13,7 +13,7 @@
 #include <functional>
 #include <limits>
 
-#include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/core/mesh_test_util.h"
 #include "zipfusion/core/rasterizer.h"
@@ -131,18 +131,13 @@ TEST(Zipper, DistancesBeyondABodysGapsAreRefused) {
   auto refusal = [](auto set) {
     ZipperOptions options;
     set(options);
-    try {
-      options.validate();
-    } catch (const InvalidInput& e) {
-      return std::string(e.what());
-    }
-    return std::string();
+    return invalid_input_message([&] { options.validate(); });
   };
-  EXPECT_EQ(refusal([](ZipperOptions& o) { o.redundancy_distance_m = 0.1; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.redundancy_distance_m = 0.1; }), kNoInvalidInput);
   EXPECT_EQ(refusal([](ZipperOptions& o) { o.redundancy_distance_m = 0.11; }), "--redundancy-distance: must be in (0, 0.1] metres");
-  EXPECT_EQ(refusal([](ZipperOptions& o) { o.max_seam_edge_m = 0.1; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.max_seam_edge_m = 0.1; }), kNoInvalidInput);
   EXPECT_EQ(refusal([](ZipperOptions& o) { o.max_seam_edge_m = 0.2; }), "--max-seam-edge: must be in (0, 0.1] metres");
-  EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = 0.05; }), "");
+  EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = 0.05; }), kNoInvalidInput);
   EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = 0.06; }), "--clipping-distance: must be in (0, 0.05] metres");
   EXPECT_EQ(refusal([](ZipperOptions& o) { o.clipping_distance_m = std::nan(""); }), "--clipping-distance: must be in (0, 0.05] metres");
 }

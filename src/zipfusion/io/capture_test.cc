@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/image_io.h"
 
@@ -252,12 +253,8 @@ TEST(StagedFolder, FilesAppearTogetherOrNotAtAll) {
     EXPECT_EQ(run.removed(), std::vector<fs::path>{killed});
     EXPECT_EQ(run.staging().parent_path(), out);
     // A second run, in this process or another, finds the folder held.
-    try {
-      StagedFolder second(out, "--out");
-      ADD_FAILURE() << "two runs held one folder";
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(std::string(e.what()).find("another zipfusion run is writing into this folder (choose another --out"), std::string::npos) << e.what();
-    }
+    const std::string message = invalid_input_message([&] { StagedFolder second(out, "--out"); });
+    EXPECT_NE(message.find("another zipfusion run is writing into this folder (choose another --out"), std::string::npos) << message;
     write_file_atomic(run.staging() / "000000.ply", "new 0");
     write_file_atomic(run.staging() / "000001.ply", "new 1");
     EXPECT_EQ(read_text(out / "000000.ply"), "old 0") << "nothing appears before commit()";
@@ -297,21 +294,12 @@ TEST(WriteFolderAtomic, WritesThroughLinksAndKeepsThem) {
   EXPECT_TRUE(fs::is_regular_file(dir / "runs" / "empty" / "a.txt"));
   EXPECT_TRUE(fs::is_regular_file(dir / "runs" / "new" / "a.txt"));
   // The folder a link ends at is what must be new, and errors name it.
-  try {
-    check_new_folder(dir / "to_link", "--out");
-    ADD_FAILURE() << "a link to a folder that is not empty was accepted";
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()),
-              (dir / "to_link").string() + " (a link to " + (dir / "runs" / "empty").string() + "): already exists and is not empty (choose a new --out)");
-  }
+  EXPECT_EQ(invalid_input_message([&] { check_new_folder(dir / "to_link", "--out"); }),
+            (dir / "to_link").string() + " (a link to " + (dir / "runs" / "empty").string() + "): already exists and is not empty (choose a new --out)");
   write_file_atomic(dir / "file", "x");
   fs::create_symlink("file", dir / "to_file");
-  try {
-    check_new_folder(dir / "to_file", "--out");
-    ADD_FAILURE() << "a link to a file was accepted";
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "to_file").string() + " (a link to " + (dir / "file").string() + "): is a file, not a folder (choose a new --out)");
-  }
+  EXPECT_EQ(invalid_input_message([&] { check_new_folder(dir / "to_file", "--out"); }),
+            (dir / "to_file").string() + " (a link to " + (dir / "file").string() + "): is a file, not a folder (choose a new --out)");
   fs::create_symlink("loop_b", dir / "loop_a");
   fs::create_symlink("loop_a", dir / "loop_b");
   EXPECT_THROW(check_new_folder(dir / "loop_a", "--out"), InvalidInput);
@@ -583,12 +571,7 @@ TEST(ColorImage, CorruptJpegsAndPngsAreErrorsAndPrintNothing) {
   const std::pair<const std::vector<std::uint8_t>*, const char*> cases[] = {{&cut, "cut.jpg"}, {&scrambled, "scrambled.jpg"}, {&cut_png, "cut.png"}};
   for (const auto& [bytes, name] : cases) {
     ::testing::internal::CaptureStderr();
-    std::string error;
-    try {
-      decode_color_image(*bytes, name);
-    } catch (const InvalidInput& e) {
-      error = e.what();
-    }
+    const std::string error = invalid_input_message([&] { decode_color_image(*bytes, name); });
     EXPECT_EQ(::testing::internal::GetCapturedStderr(), "") << name;
     EXPECT_EQ(error.rfind(std::string(name) + ": cannot decode image (corrupt or truncated): ", 0), 0u) << error;
     EXPECT_EQ(error.find('\n'), std::string::npos) << error;
@@ -644,19 +627,11 @@ TEST(ColorImage, ImplausibleSizesAndCmykAreNamed) {
       {cmyk_jpeg(), "cmyk.jpg: colour space: a CMYK JPEG is not a camera image"}};
   for (const auto& [bytes, expected] : cases) {
     const std::string source = expected.substr(0, expected.find(':'));
-    try {
-      decode_color_image(bytes, source);
-      ADD_FAILURE() << expected;
-    } catch (const InvalidInput& e) {
-      EXPECT_EQ(std::string(e.what()).rfind(expected, 0), 0u) << e.what();
-    }
+    const std::string message = invalid_input_message([&] { decode_color_image(bytes, source); });
+    EXPECT_EQ(message.rfind(expected, 0), 0u) << "expected: " << expected << "\n  actual: " << message;
   }
-  try {
-    decode_depth_png(png, "wide.png");
-    ADD_FAILURE() << "a 40000-pixel-wide depth PNG was decoded";
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("wide.png: image size: 40000x2", 0), 0u) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { decode_depth_png(png, "wide.png"); });
+  EXPECT_EQ(message.rfind("wide.png: image size: 40000x2", 0), 0u) << message;
 }
 
 // Warnings about a JPEG's headers leave its pixels intact and pass: a JFIF revision libjpeg does

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/io/file_util.h"
 
 namespace zipfusion {
@@ -54,12 +55,7 @@ class RigFile : public ::testing::Test {
     edit(j);
     const fs::path path = dir_ / "rig.json";
     write_file_atomic(path, j.dump(1));
-    try {
-      read_rig(path);
-    } catch (const InvalidInput& e) {
-      return e.what();
-    }
-    return "no error";
+    return invalid_input_message([&] { read_rig(path); });
   }
 };
 
@@ -107,7 +103,7 @@ TEST_F(RigFile, UnknownKeysAreIgnoredAndDefaultsApply) {
     j.erase("depth_unit_m");
     j.erase("volume");
   });
-  EXPECT_EQ(error, "no error");
+  EXPECT_EQ(error, kNoInvalidInput);
   const Rig rig = read_rig(dir_ / "rig.json");
   EXPECT_EQ(rig.depth_unit_m, 0.001);
   EXPECT_FALSE(rig.volume.has_value());
@@ -206,12 +202,8 @@ TEST_F(RigFile, BrokenJsonAndMissingFileAreReported) {
   // same message.
   for (const std::string_view text : {R"({"format": "zipfusion.rig/1", )", R"({"format": "zipfusion.rig/1", "fps": 1e400})"}) {
     write_file_atomic(dir_ / "rig.json", text);
-    try {
-      read_rig(dir_ / "rig.json");
-      ADD_FAILURE() << "no error for " << text;
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(std::string(e.what()).find("rig.json: not valid JSON"), std::string::npos) << e.what();
-    }
+    const std::string message = invalid_input_message([&] { read_rig(dir_ / "rig.json"); });
+    EXPECT_NE(message.find("rig.json: not valid JSON"), std::string::npos) << text << ": " << message;
   }
   EXPECT_THROW(read_rig(dir_ / "absent.json"), IoError);
 }
@@ -233,12 +225,8 @@ TEST(RigPoses, CamerasWithinACentimetreAndADegreeShareAPose) {
   rig.cameras[2].world_from_depth.translation() += Eigen::Vector3d(0.005, 0.005, -0.005);  // 8.7 mm
   EXPECT_EQ(cameras_sharing_a_pose(rig), (std::pair{1, 2}));
   EXPECT_EQ(shared_pose_problem(rig).rfind("cameras[2].world_from_depth: the pose of cameras[1] (\"cam1\" and \"cam2\"", 0), 0u);
-  try {
-    check_poses_distinct(rig, "x/rig.json");
-    ADD_FAILURE() << "no error";
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("x/rig.json: cameras[2].world_from_depth: ", 0), 0u) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { check_poses_distinct(rig, "x/rig.json"); });
+  EXPECT_EQ(message.rfind("x/rig.json: cameras[2].world_from_depth: ", 0), 0u) << message;
   // 1.1° or 1.1 cm apart: two cameras side by side.
   rig.cameras[2].world_from_depth = rig.cameras[1].world_from_depth * turned(1.1);
   EXPECT_FALSE(cameras_sharing_a_pose(rig));

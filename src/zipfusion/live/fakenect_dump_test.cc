@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/core/folder_test_util.h"
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/live/kinect_disparity.h"
@@ -97,12 +98,8 @@ TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
                                  std::string("d-1.0-12.pgm\nd-1e300-12.pgm\n"), std::string("d-1.0-12.pgm\nd--5.0-12.pgm\n"), too_long,
                                  nul_type, std::string("d-1.0-12.pgm\n5-1.0-12.pgm\n"), std::string("d-1.0-12.pgm\nd-1.0-12 x.pgm\n"),
                                  std::string("d-1.0-12.pgm\nd-1.0-12.p\x1bgm\n")}) {
-    try {
-      parse_fakenect_index(bad, "dump/INDEX.txt");
-      ADD_FAILURE() << bad;
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(std::string(e.what()).find("dump/INDEX.txt: line 2:"), std::string::npos) << e.what();
-    }
+    const std::string message = invalid_input_message([&] { parse_fakenect_index(bad, "dump/INDEX.txt"); });
+    EXPECT_NE(message.find("dump/INDEX.txt: line 2:"), std::string::npos) << ::testing::PrintToString(bad) << ": " << message;
   }
 }
 
@@ -110,15 +107,10 @@ TEST(FakenectFormat, MalformedIndexLinesAreNamed) {
 TEST(FakenectFormat, BinaryIndexIsQuotedPrintably) {
   std::string binary = "d-1.0-12.pgm\n\x01\x89PNG";
   binary += std::string(200, '\xff');
-  try {
-    parse_fakenect_index(binary, "dump/INDEX.txt");
-    FAIL() << "no error";
-  } catch (const InvalidInput& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find("dump/INDEX.txt: line 2: \"\\x01\\x89PNG\\xff"), std::string::npos) << message;
-    EXPECT_NE(message.find("...\" is not a fakenect file name"), std::string::npos) << message;
-    for (const char c : message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << message;
-  }
+  const std::string message = invalid_input_message([&] { parse_fakenect_index(binary, "dump/INDEX.txt"); });
+  EXPECT_NE(message.find("dump/INDEX.txt: line 2: \"\\x01\\x89PNG\\xff"), std::string::npos) << message;
+  EXPECT_NE(message.find("...\" is not a fakenect file name"), std::string::npos) << message;
+  for (const char c : message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << message;
 }
 
 TEST(FakenectFormat, DepthAndColourRoundTripBitExactly) {
@@ -150,24 +142,15 @@ TEST(FakenectFormat, DepthThatIsNotElevenBitIsAnError) {
   const std::pair<const std::vector<std::uint8_t>*, const char*> cases[] = {{&other_maxval, "d.pgm: header: MAXVAL is 0, fakenect writes 65535"},
                                                                             {&bytes, "d.pgm: pixels: value 37121 above 2047"}};
   for (const auto& [file, expected] : cases) {
-    try {
-      decode_fakenect_depth(*file, "d.pgm");
-      ADD_FAILURE() << expected;
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
-    }
+    const std::string message = invalid_input_message([&] { decode_fakenect_depth(*file, "d.pgm"); });
+    EXPECT_NE(message.find(expected), std::string::npos) << "expected: " << expected << "\n  actual: " << message;
   }
 }
 
 TEST(FakenectFormat, TruncatedOrWrongFilesAreErrorsNamingThem) {
   std::vector<std::uint8_t> bytes = encode_fakenect_depth(ramp_raw(0));
   bytes.pop_back();
-  try {
-    decode_fakenect_depth(bytes, "dump/d-1.pgm");
-    FAIL();
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()), "dump/d-1.pgm: truncated: 614399 of 614400 bytes");
-  }
+  EXPECT_EQ(invalid_input_message([&] { decode_fakenect_depth(bytes, "dump/d-1.pgm"); }), "dump/d-1.pgm: truncated: 614399 of 614400 bytes");
   EXPECT_THROW(decode_fakenect_rgb(encode_fakenect_depth(ramp_raw(0)), "r.ppm"), InvalidInput);  // P5 is not P6
   const std::string small = "P5 320 240 65535\n";
   EXPECT_THROW(decode_fakenect_depth(std::vector<std::uint8_t>(small.begin(), small.end()), "d.pgm"), InvalidInput);
@@ -184,16 +167,8 @@ TEST(FakenectFormat, DecodersNeverCrashOnRandomBytes) {
       const std::string header = i % 2 ? "P5 640 480 65535\n" : "P6 640 4";
       bytes.insert(bytes.begin(), header.begin(), header.end());
     }
-    try {
-      decode_fakenect_depth(bytes, "x");
-    } catch (const InvalidInput&) {
-      ++rejected;
-    }
-    try {
-      decode_fakenect_rgb(bytes, "x");
-    } catch (const InvalidInput&) {
-      ++rejected;
-    }
+    if (invalid_input_message([&] { decode_fakenect_depth(bytes, "x"); }) != kNoInvalidInput) ++rejected;
+    if (invalid_input_message([&] { decode_fakenect_rgb(bytes, "x"); }) != kNoInvalidInput) ++rejected;
   }
   EXPECT_EQ(rejected, 600);
 }

@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/image_io.h"
 
@@ -206,12 +207,7 @@ TEST_F(Recorder, CalibrationGivesNamesIntrinsicsPosesAndVolume) {
   EXPECT_TRUE(fs::is_directory(dir_ / "right" / "depth"));
 
   calibration.cameras.pop_back();
-  try {
-    make_live_rig(*live, &calibration, "cal.json");
-    FAIL();
-  } catch (const InvalidInput& e) {
-    EXPECT_EQ(std::string(e.what()), "cal.json: cameras: has 1 cameras, but 2 devices are selected");
-  }
+  EXPECT_EQ(invalid_input_message([&] { make_live_rig(*live, &calibration, "cal.json"); }), "cal.json: cameras: has 1 cameras, but 2 devices are selected");
 }
 
 TEST_F(Recorder, ACalibrationOfOtherImagesIsOneLineNamingTheField) {
@@ -220,12 +216,7 @@ TEST_F(Recorder, ACalibrationOfOtherImagesIsOneLineNamingTheField) {
   auto message = [&](const std::function<void(Rig&)>& change) {
     Rig calibration = devices;
     change(calibration);
-    try {
-      make_live_rig(*live, &calibration, "cal.json");
-    } catch (const InvalidInput& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return invalid_input_message([&] { make_live_rig(*live, &calibration, "cal.json"); });
   };
   EXPECT_EQ(message([](Rig& r) { r.cameras[1].depth_intrinsics.width = 320; }),
             "cal.json: cameras[1].depth_intrinsics: 320x48, but the device's images are 64x48");
@@ -270,12 +261,8 @@ TEST_F(Recorder, BadOptionsAndANonEmptyFolderAreRejected) {
   EXPECT_THROW(record_capture(*live, rig, dir_, {.color_extension = ".bmp"}), InvalidInput);
   fs::create_directories(dir_);
   { std::ofstream(dir_ / "something") << "x"; }
-  try {
-    record_capture(*live, rig, dir_, {});
-    FAIL();
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("choose a new --out"), std::string::npos) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { record_capture(*live, rig, dir_, {}); });
+  EXPECT_NE(message.find("choose a new --out"), std::string::npos) << message;
 }
 
 }  // namespace

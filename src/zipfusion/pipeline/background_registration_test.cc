@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/synth/synth.h"
 
 namespace zipfusion {
@@ -18,12 +18,8 @@ TEST(BackgroundRegistrationOptions, ValidateNamesTheField) {
   BackgroundRegistrationOptions o;
   EXPECT_NO_THROW(o.validate());
   o.every_frames = 0;
-  try {
-    o.validate();
-    FAIL() << "no exception";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("register-every"), std::string::npos) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { o.validate(); });
+  EXPECT_NE(message.find("register-every"), std::string::npos) << message;
 }
 
 // Frames offered as a pipeline would: the worker refines the perturbed samba-4cam rig in the

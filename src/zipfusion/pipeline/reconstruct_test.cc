@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/error_test_util.h"
 #include "zipfusion/core/mesh_distance.h"
 #include "zipfusion/eval/eval.h"
 #include "zipfusion/io/capture.h"
@@ -436,12 +437,8 @@ TEST(Reconstruct, NewPosesReachTheLevelOfDetailsForeground) {
   DepthImage& depth = cropped.cameras[2].depth;
   depth.resize(depth.width - 1, depth.height);
   FrameReconstructor half(scene.rig, {.depth_level = 1});
-  try {
-    half.reconstruct(cropped);
-    FAIL() << "a 639-pixel-wide depth image was accepted";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find(scene.rig.cameras[2].name + ": depth image 639x480"), std::string::npos) << e.what();
-  }
+  const std::string message = invalid_input_message([&] { half.reconstruct(cropped); });
+  EXPECT_NE(message.find(scene.rig.cameras[2].name + ": depth image 639x480"), std::string::npos) << message;
 }
 
 // A recycled mesh's buffers hold the next frame set's mesh, and that mesh is exactly the one a
