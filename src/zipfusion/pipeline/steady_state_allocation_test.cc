@@ -132,7 +132,7 @@ TEST_F(SteadyState, SeparateMeshesAllocateNothing) {
 // The zipper's seams are triangulated by CGAL, whose triangulation allocates as it grows and
 // whose constraint insertion allocates lists; OpenCV's dilation and erosion allocate their filter
 // objects. None of that is the size of an image: a buffer that is (640×480 floats are 1.2 MB) must
-// be kept in a scratch between frames. The count (about 4 100–4 900 a frame set, nearly all
+// be kept in a scratch between frames. The count (about 4 700–6 400 a frame set, nearly all
 // CGAL's) is bounded too, so that per-row or per-triangle allocations do not creep in.
 TEST_F(SteadyState, ZipperAllocatesNoImageSizedBuffer) {
   constexpr size_t kLargestAllowed = 256 * 1024;
