@@ -68,6 +68,8 @@ class SmallCapture : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
+  // Any exception's message, not only InvalidInput's (so not invalid_input_message): opening also
+  // throws IoError. "no error" when it opens.
   std::string open_error(const CaptureOpenOptions& options = {}) {
     try {
       Capture::open(dir_, options);
@@ -573,8 +575,8 @@ TEST(ColorImage, CorruptJpegsAndPngsAreErrorsAndPrintNothing) {
     ::testing::internal::CaptureStderr();
     const std::string error = invalid_input_message([&] { decode_color_image(*bytes, name); });
     EXPECT_EQ(::testing::internal::GetCapturedStderr(), "") << name;
-    EXPECT_EQ(error.rfind(std::string(name) + ": cannot decode image (corrupt or truncated): ", 0), 0u) << error;
-    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+    EXPECT_EQ(error.rfind(std::string(name) + ": cannot decode image (corrupt or truncated): ", 0), 0u) << name << ": " << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << name << ": " << error;
   }
 }
 
