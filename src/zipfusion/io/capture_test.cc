@@ -527,7 +527,6 @@ TEST(WriteFileAtomic, WritesThroughLinksAndNeverOverSpecialFiles) {
   fs::remove_all(dir);
 }
 
-// Every capture in ../shared/data follows the format and loads.
 // Grey and BGRA colour images come out as RGB with their pixels (converted into the image's own
 // buffer, which a conversion that reallocated would leave black).
 TEST(ColorImage, GreyAndAlphaPngsDecodeToTheirPixels) {
@@ -677,6 +676,7 @@ TEST(ColorImage, JpegAndDepthPngPixelsMatchOpenCv) {
   EXPECT_EQ(decoded.data, depth.data);
 }
 
+// Every capture in ../shared/data follows the format and loads.
 TEST(SharedData, EveryCaptureLoads) {
   ASSERT_TRUE(fs::is_directory(kSharedData)) << kSharedData;
   int captures = 0;

@@ -463,7 +463,11 @@ TEST(MeshIo, RandomCorruptionNeverCrashes) {
     } catch (const InvalidInput&) {
     }
     try {
-      parse_obj(std::string(bytes.begin(), bytes.end()), "fuzz.obj");
+      const TriangleMesh m = parse_obj(std::string(bytes.begin(), bytes.end()), "fuzz.obj");
+      for (const Eigen::Vector3i& t : m.triangles) {
+        ASSERT_TRUE((t.array() >= 0).all() && (t.array() < static_cast<int>(m.vertex_count())).all());
+      }
+      ASSERT_TRUE(m.colors.empty() || m.colors.size() == m.positions.size());
     } catch (const InvalidInput&) {
     }
   }

@@ -299,9 +299,10 @@ TEST_F(StreamServerTest, BadMessagesCloseOnlyTheirClient) {
       c->read();
       ADD_FAILURE() << "a bad client was not closed";
     } catch (const boost::system::system_error& e) {
-      // A closing handshake with the reason, or (the server may drop the connection while the
-      // oversized message is still arriving) a broken connection.
-      if (e.code() == websocket::error::closed) {
+      // A closing handshake with the reason; only for the oversized message may the server drop
+      // the connection instead, while the message is still arriving.
+      if (c == &garbage || e.code() == websocket::error::closed) {
+        EXPECT_EQ(e.code(), websocket::error::closed) << e.code().message();
         EXPECT_EQ(c->ws.reason().code, code);
       }
     }
@@ -345,17 +346,15 @@ TEST_F(StreamServerTest, AStalledClientSlowsNobody) {
   // last 4 of those before it (10 s at most): a reader thread starved of the CPU by other tests
   // (make test runs two at once on two cores) would otherwise fall more than the 8 waiting frames
   // behind, and be skipped as a slow client, rightly. If the stalled client held up the others,
-  // they would stop receiving and the wait would run out.
+  // they would stop receiving and the wait would run out; a broadcast that sent instead of handing
+  // over would block on the stalled socket and the test would not end.
   const std::string frame = frame_message("{}", std::string(100 * 1024, 'm'));
-  double longest_broadcast_ms = 0;
   const auto readers_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   for (int k = 0; k < kFrames; ++k) {
     for (int i = 0; i < kReaders; ++i) {
       while (received[i] < k - 4 && std::chrono::steady_clock::now() < readers_deadline) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    const auto t0 = std::chrono::steady_clock::now();
     server.broadcast(frame);
-    longest_broadcast_ms = std::max(longest_broadcast_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     std::this_thread::sleep_for(std::chrono::microseconds(16667));
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
@@ -373,7 +372,6 @@ TEST_F(StreamServerTest, AStalledClientSlowsNobody) {
   for (auto& t : readers) t.join();
   const StreamServerStats stats = server.stats();
   EXPECT_GT(stats.frames_skipped, kFrames / 2) << "the stalled client should skip most frames";
-  EXPECT_LT(longest_broadcast_ms, 50.0) << "broadcast must hand over, not send";
 }
 
 }  // namespace
