@@ -183,6 +183,14 @@ def readme_summary(folder):
             "bilateral filter, at full resolution, in its per-stage table.")
     paired = [(zipfusion, o3d["tsdf"]["total_ms"]["median"])
               for zipfusion, o3d in zip(load_rounds(folder, "paired_zipfusion"), load_rounds(folder, "paired_open3d"))]
+    if paired:
+        # The per-stage table times each configuration once; the rounds show how far that moves.
+        def spread(label):
+            totals = [config(z, label)["ms"]["total"]["median"] for z, _ in paired]
+            return f"{min(totals):.1f}–{max(totals):.1f} ms (median {statistics.median(totals):.1f})"
+
+        text += (f" In its {len(paired)} alternating rounds the same two took {spread('zipper')} and "
+                 f"{spread('zipper+filter')}.")
     tsdf_eval = load(folder, "eval_open3d_block_0.01.json")
     if paired and tsdf_eval:
         tsdf = tsdf_eval["mean"]
