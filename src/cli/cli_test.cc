@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -703,6 +704,34 @@ TEST_F(Cli, ReconstructTakesTheWholeCalibrationFromRig) {
   EXPECT_EQ(r.err, "zipfusion: error: " + (dir_ / "other.json").string() +
                        ": cameras[1].color_intrinsics: 320x120, but the capture's images are 160x120\n");
   EXPECT_FALSE(fs::exists(dir_ / "x"));
+}
+
+// The floor lift (--floor-noise) raises the volume's lowest-z face: in a rig whose world is not
+// z-up that face is no floor, and reconstruct says so once (not for a z-up rig, nor with the lift
+// off).
+TEST_F(Cli, AWorldThatIsNotZUpIsWarnedOfTheFloorLift) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
+  const std::string warning = "reconstruct: warning: no camera of the rig looks down its world's z axis (is z up?)";
+  CommandResult r = run("reconstruct " + capture.string() + " --register off --out " + (dir_ / "z_up").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find(warning), std::string::npos) << r.err;
+  // The same rig and volume with y up: (x, y, z) → (x, z, −y).
+  Rig y_up = read_rig(capture / "rig.json");
+  const Rigid3d to_y_up(Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX()));
+  for (CameraModel& camera : y_up.cameras) camera.world_from_depth = to_y_up * camera.world_from_depth;
+  ASSERT_TRUE(y_up.volume.has_value());
+  const Box3d box = *y_up.volume;
+  y_up.volume = Box3d{.min = {box.min.x(), box.min.z(), -box.max.y()}, .max = {box.max.x(), box.max.z(), -box.min.y()}};
+  write_rig(dir_ / "y_up.json", y_up);
+  r = run("reconstruct " + capture.string() + " --rig " + (dir_ / "y_up.json").string() + " --register off --out " + (dir_ / "y_up").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.rfind(warning, 0), 0u) << r.err;
+  EXPECT_EQ(r.err.find(warning, 1), std::string::npos) << r.err;  // once
+  r = run("reconstruct " + capture.string() + " --rig " + (dir_ / "y_up.json").string() + " --register off --floor-noise 0 --out " +
+          (dir_ / "lift_off").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find(warning), std::string::npos) << r.err;
 }
 
 // The subcommands a --help lists under "Subcommands:", each with its one-line description.

@@ -68,6 +68,7 @@ void run_reconstruct(ReconstructArgs& args) {
   // A signal stops the run at a frame boundary from here on (live input installs it as it opens).
   if (!args.input.live) install_stop_on_signal();
   open_input(args.input, r.rig, r.register_mode, "reconstruct", in);
+  warn_if_world_not_z_up(in.rig, r, "reconstruct");
 
   // The output folder is checked before the reconstruction is set up (--register once registers
   // the rig first, which takes seconds). The meshes and stats.json go into a staging folder and

@@ -87,6 +87,12 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   add_threads_option(cmd, o.num_threads);
 }
 
+void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, const std::string& command) {
+  if (args.options.foreground.floor_noise_sigmas <= 0 || args.no_volume_crop || !rig.volume || world_looks_z_up(rig)) return;
+  print_diagnostic(command + ": warning: no camera of the rig looks down its world's z axis (is z up?): --floor-noise raises the capture "
+                   "volume's lowest-z face as a floor's; pass --floor-noise 0 if the floor is not below the volume along z");
+}
+
 nlohmann::ordered_json options_json(const ReconstructOptions& options) {
   return {{"min_depth_m", options.foreground.min_depth_m},
           {"max_depth_m", options.foreground.max_depth_m},

@@ -30,6 +30,11 @@ struct ReconstructionArgs {
 //! --mode, --filter, --rig, --register*, --lod, the depth, filter and zipper thresholds, --threads.
 void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args);
 
+//! Warns (`command`: warning: ...) where the volume's floor lift (--floor-noise) would apply to a
+//! rig whose world does not look z-up (world_looks_z_up): the lift raises the volume's lowest-z
+//! face, which is the floor's only in a z-up world.
+void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, const std::string& command);
+
 //! The options as JSON (stats.json, the stream's description).
 nlohmann::ordered_json options_json(const ReconstructOptions& options);
 

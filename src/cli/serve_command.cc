@@ -138,6 +138,7 @@ void run_serve(ServeArgs& args) {
   ReconstructionArgs& r = args.reconstruction;
   Input in;
   open_input(args.input, r.rig, r.register_mode, "serve", in);
+  warn_if_world_not_z_up(in.rig, r, "serve");
   Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).

@@ -391,6 +391,17 @@ void check_poses_distinct(const Rig& rig, const std::string& source) {
   if (const std::string problem = shared_pose_problem(rig); !problem.empty()) throw InvalidInput(source + ": " + problem);
 }
 
+bool world_looks_z_up(const Rig& rig) {
+  size_t upright_or_overhead = 0;
+  for (const CameraModel& cam : rig.cameras) {
+    // Columns of the rotation: the image's x (right), y (down) and z (viewing) axes in the world.
+    const Eigen::Matrix3d axes = cam.world_from_depth.linear();
+    if (axes(2, 1) < -0.5 || axes(2, 2) < -0.7) ++upright_or_overhead;
+  }
+  // A majority, not one: in the first camera's frame the camera facing it looks along −z too.
+  return 2 * upright_or_overhead > rig.cameras.size();
+}
+
 void take_camera_calibration(CameraModel& camera, const Rig& calibration, int c, const std::string& source, const std::string& owner) {
   const CameraModel& calibrated = calibration.cameras.at(c);
   const std::string field = source + ": cameras[" + std::to_string(c) + "].";

@@ -100,6 +100,14 @@ std::string shared_pose_problem(const Rig& rig);
 //! Throws InvalidInput "`source`: " + shared_pose_problem(rig) where that is not empty.
 void check_poses_distinct(const Rig& rig, const std::string& source);
 
+//! Whether the rig's world looks z-up, as the volume's floor lift (ForegroundOptions::
+//! floor_noise_sigmas) takes it: more than half of the cameras stand upright (the image's "down"
+//! axis within 60° of the world's −z) or look steeply down (the viewing axis within about 45° of
+//! −z, overhead, where the image's "down" is level). In a world with y up, or in the first
+//! camera's own frame as other tools often write rigs, at most the cameras facing the first one
+//! look "down" so; a rig without cameras does not look z-up.
+bool world_looks_z_up(const Rig& rig);
+
 //! Puts camera `c` of `calibration` (a rig.json read from `source`: what `calibrate` and
 //! `register` write) onto `camera`, the model of the camera whose frames are read: its depth and
 //! colour intrinsics (distortion included), color_from_depth and world_from_depth. The name and

@@ -2,12 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <numbers>
 #include <nlohmann/json.hpp>
 
 #include "zipfusion/core/error.h"
+#include "zipfusion/core/geometry.h"
 #include "zipfusion/core/error_test_util.h"
 #include "zipfusion/io/file_util.h"
 
@@ -236,6 +238,40 @@ TEST(RigPoses, CamerasWithinACentimetreAndADegreeShareAPose) {
   // Every camera at identity, as record writes without --rig: the first two.
   for (CameraModel& camera : rig.cameras) camera.world_from_depth = Rigid3d::Identity();
   EXPECT_EQ(cameras_sharing_a_pose(rig), (std::pair{0, 1}));
+}
+
+// The floor lift takes the world to be z-up: a ring of cameras at chest height looking at the
+// subject is, and so is a camera overhead; the same ring in a y-up world or in its first camera's
+// own frame (y down), as other tools write rigs, is not, although there the camera facing the
+// first one looks along −z.
+TEST(RigPoses, WorldLooksZUpFromTheCamerasImageDownAxes) {
+  Rig ring;
+  for (int c = 0; c < 4; ++c) {
+    const double angle = std::numbers::pi / 4 + c * std::numbers::pi / 2;
+    ring.cameras.push_back({.name = "cam" + std::to_string(c),
+                            .world_from_depth = look_at(Eigen::Vector3d(2.5 * std::cos(angle), 2.5 * std::sin(angle), 1.3), Eigen::Vector3d(0, 0, 0.9))});
+  }
+  EXPECT_TRUE(world_looks_z_up(ring));
+  // z up → y up: (x, y, z) → (x, z, −y).
+  Rig y_up = ring;
+  const Rigid3d to_y_up(Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX()));
+  ASSERT_TRUE((to_y_up * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitY()));
+  for (CameraModel& camera : y_up.cameras) camera.world_from_depth = to_y_up * camera.world_from_depth;
+  EXPECT_FALSE(world_looks_z_up(y_up));
+  // The first camera's frame as the world: its own image "down" is +y there, level.
+  Rig first_camera = ring;
+  const Rigid3d to_first = ring.cameras[0].world_from_depth.inverse();
+  for (CameraModel& camera : first_camera.cameras) camera.world_from_depth = to_first * camera.world_from_depth;
+  EXPECT_FALSE(world_looks_z_up(first_camera));
+  // One camera overhead, looking straight down (its image "down" level): z-up.
+  Rig overhead;
+  overhead.cameras.push_back({.name = "top", .world_from_depth = Rigid3d(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()))});
+  overhead.cameras[0].world_from_depth.translation() = Eigen::Vector3d(0, 0, 3);
+  ASSERT_NEAR((overhead.cameras[0].world_from_depth.linear() * Eigen::Vector3d::UnitZ()).z(), -1, 1e-12);
+  EXPECT_TRUE(world_looks_z_up(overhead));
+  ring.cameras.push_back(overhead.cameras[0]);
+  EXPECT_TRUE(world_looks_z_up(ring));
+  EXPECT_FALSE(world_looks_z_up(Rig{}));
 }
 
 }  // namespace
