@@ -712,7 +712,7 @@ TEST_F(Cli, ReconstructTakesTheWholeCalibrationFromRig) {
 TEST_F(Cli, AWorldThatIsNotZUpIsWarnedOfTheFloorLift) {
   const fs::path capture = dir_ / "cap";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 2 --resolution 160x120").exit_code, 0);
-  const std::string warning = "reconstruct: warning: no camera of the rig looks down its world's z axis (is z up?)";
+  const std::string warning = "reconstruct: warning: the rig's world does not look z-up";
   CommandResult r = run("reconstruct " + capture.string() + " --register off --out " + (dir_ / "z_up").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find(warning), std::string::npos) << r.err;

@@ -88,9 +88,11 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
 }
 
 void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, const std::string& command) {
+  args.options.foreground.validate();  // a bad --floor-noise is an error, not a warning first
   if (args.options.foreground.floor_noise_sigmas <= 0 || args.no_volume_crop || !rig.volume || world_looks_z_up(rig)) return;
-  print_diagnostic(command + ": warning: no camera of the rig looks down its world's z axis (is z up?): --floor-noise raises the capture "
-                   "volume's lowest-z face as a floor's; pass --floor-noise 0 if the floor is not below the volume along z");
+  print_diagnostic(command + ": warning: the rig's world does not look z-up (most cameras neither stand upright nor look down along -z, "
+                   "and they stand at no one height along z): --floor-noise raises the capture volume's lowest-z face as a floor's; pass "
+                   "--floor-noise 0 if the floor is not below the volume along z");
 }
 
 nlohmann::ordered_json options_json(const ReconstructOptions& options) {

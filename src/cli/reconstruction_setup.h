@@ -32,7 +32,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args);
 
 //! Warns (`command`: warning: ...) where the volume's floor lift (--floor-noise) would apply to a
 //! rig whose world does not look z-up (world_looks_z_up): the lift raises the volume's lowest-z
-//! face, which is the floor's only in a z-up world.
+//! face, which is the floor's only in a z-up world. Throws InvalidInput for bad depth options.
 void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, const std::string& command);
 
 //! The options as JSON (stats.json, the stream's description).

@@ -1,11 +1,13 @@
 #include "zipfusion/io/rig.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <climits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -392,14 +394,31 @@ void check_poses_distinct(const Rig& rig, const std::string& source) {
 }
 
 bool world_looks_z_up(const Rig& rig) {
+  const size_t n = rig.cameras.size();
+  if (n == 0) return false;
   size_t upright_or_overhead = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const CameraModel& cam : rig.cameras) {
     // Columns of the rotation: the image's x (right), y (down) and z (viewing) axes in the world.
     const Eigen::Matrix3d axes = cam.world_from_depth.linear();
     if (axes(2, 1) < -0.5 || axes(2, 2) < -0.7) ++upright_or_overhead;
+    mean += cam.world_from_depth.translation() / static_cast<double>(n);
   }
   // A majority, not one: in the first camera's frame the camera facing it looks along −z too.
-  return 2 * upright_or_overhead > rig.cameras.size();
+  if (2 * upright_or_overhead > n) return true;
+  if (n < 2) return false;
+  // The cameras' positions: a ring's plane, or the line through a pair, is level in a z-up world
+  // whatever way each camera is turned about its axis.
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (const CameraModel& cam : rig.cameras) {
+    const Eigen::Vector3d d = cam.world_from_depth.translation() - mean;
+    spread += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes_of(spread);  // eigenvalues ascending
+  const Eigen::Vector3d extent = axes_of.eigenvalues();
+  if (!(extent(2) > 0)) return false;  // every camera at one place
+  if (extent(1) < 0.1 * extent(2)) return std::abs(axes_of.eigenvectors().col(2).z()) < 0.5;  // about a line
+  return std::abs(axes_of.eigenvectors().col(0).z()) > std::cos(std::numbers::pi / 6);
 }
 
 void take_camera_calibration(CameraModel& camera, const Rig& calibration, int c, const std::string& source, const std::string& owner) {

@@ -101,11 +101,15 @@ std::string shared_pose_problem(const Rig& rig);
 void check_poses_distinct(const Rig& rig, const std::string& source);
 
 //! Whether the rig's world looks z-up, as the volume's floor lift (ForegroundOptions::
-//! floor_noise_sigmas) takes it: more than half of the cameras stand upright (the image's "down"
-//! axis within 60° of the world's −z) or look steeply down (the viewing axis within about 45° of
-//! −z, overhead, where the image's "down" is level). In a world with y up, or in the first
-//! camera's own frame as other tools often write rigs, at most the cameras facing the first one
-//! look "down" so; a rig without cameras does not look z-up.
+//! floor_noise_sigmas) takes it. Either of two signs will do:
+//! - more than half of the cameras stand upright (the image's "down" axis within 60° of the
+//!   world's −z) or look steeply down (the viewing axis within about 45° of −z, overhead);
+//! - the cameras stand around the subject at about one height: the plane through three or more
+//!   of them lies within 30° of level, or the line through two within 30° of level.
+//! The second also takes cameras mounted on their side (portrait) or upside down. A ring in a
+//! y-up world, or in its first camera's own frame as other tools often write rigs, shows neither;
+//! some worlds cannot be told from the poses (a y-up rig of cameras looking along −z from one
+//! side, a z-down world), and a rig without cameras does not look z-up.
 bool world_looks_z_up(const Rig& rig);
 
 //! Puts camera `c` of `calibration` (a rig.json read from `source`: what `calibrate` and

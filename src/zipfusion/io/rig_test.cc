@@ -240,37 +240,50 @@ TEST(RigPoses, CamerasWithinACentimetreAndADegreeShareAPose) {
   EXPECT_EQ(cameras_sharing_a_pose(rig), (std::pair{0, 1}));
 }
 
-// The floor lift takes the world to be z-up: a ring of cameras at chest height looking at the
-// subject is, and so is a camera overhead; the same ring in a y-up world or in its first camera's
-// own frame (y down), as other tools write rigs, is not, although there the camera facing the
-// first one looks along −z.
-TEST(RigPoses, WorldLooksZUpFromTheCamerasImageDownAxes) {
-  Rig ring;
-  for (int c = 0; c < 4; ++c) {
-    const double angle = std::numbers::pi / 4 + c * std::numbers::pi / 2;
-    ring.cameras.push_back({.name = "cam" + std::to_string(c),
-                            .world_from_depth = look_at(Eigen::Vector3d(2.5 * std::cos(angle), 2.5 * std::sin(angle), 1.3), Eigen::Vector3d(0, 0, 0.9))});
-  }
-  EXPECT_TRUE(world_looks_z_up(ring));
-  // z up → y up: (x, y, z) → (x, z, −y).
-  Rig y_up = ring;
-  const Rigid3d to_y_up(Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX()));
+// The floor lift takes the world to be z-up. A ring of cameras at chest height, or high up and
+// tilted down, is; so is a camera overhead, and a ring of cameras turned on their side (portrait)
+// or hung upside down, by the ring's level plane; so is a level pair. The same rings in a y-up
+// world, or in their first camera's own frame (y down) as other tools write rigs, are not,
+// although there the camera facing the first one looks along −z; nor is a facing pair there.
+TEST(RigPoses, WorldLooksZUpFromTheCamerasAxesAndPlaces) {
+  const auto ring_of = [](int cameras, double height, const Rigid3d& turned = Rigid3d::Identity()) {
+    Rig ring;
+    for (int c = 0; c < cameras; ++c) {
+      const double angle = std::numbers::pi / 4 + c * 2 * std::numbers::pi / cameras;
+      const Eigen::Vector3d eye(2.5 * std::cos(angle), 2.5 * std::sin(angle), height);
+      ring.cameras.push_back({.name = "cam" + std::to_string(c), .world_from_depth = look_at(eye, Eigen::Vector3d(0, 0, 0.9)) * turned});
+    }
+    return ring;
+  };
+  const auto moved = [](Rig rig, const Rigid3d& new_from_old) {
+    for (CameraModel& camera : rig.cameras) camera.world_from_depth = new_from_old * camera.world_from_depth;
+    return rig;
+  };
+  const Rigid3d to_y_up(Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX()));  // (x, y, z) → (x, z, −y)
   ASSERT_TRUE((to_y_up * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitY()));
-  for (CameraModel& camera : y_up.cameras) camera.world_from_depth = to_y_up * camera.world_from_depth;
-  EXPECT_FALSE(world_looks_z_up(y_up));
-  // The first camera's frame as the world: its own image "down" is +y there, level.
-  Rig first_camera = ring;
-  const Rigid3d to_first = ring.cameras[0].world_from_depth.inverse();
-  for (CameraModel& camera : first_camera.cameras) camera.world_from_depth = to_first * camera.world_from_depth;
-  EXPECT_FALSE(world_looks_z_up(first_camera));
-  // One camera overhead, looking straight down (its image "down" level): z-up.
+  const Rigid3d portrait(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()));  // about the viewing axis
+  const Rigid3d upside_down(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ()));
+  for (int cameras : {2, 3, 4, 6}) {
+    SCOPED_TRACE(std::to_string(cameras) + " cameras");
+    const Rig ring = ring_of(cameras, 1.3);
+    EXPECT_TRUE(world_looks_z_up(ring));
+    EXPECT_TRUE(world_looks_z_up(ring_of(cameras, 2.6)));  // tilted down 34°
+    EXPECT_TRUE(world_looks_z_up(ring_of(cameras, 1.3, portrait)));
+    EXPECT_TRUE(world_looks_z_up(ring_of(cameras, 2.6, upside_down)));
+    EXPECT_FALSE(world_looks_z_up(moved(ring, to_y_up)));
+    EXPECT_FALSE(world_looks_z_up(moved(ring, ring.cameras[0].world_from_depth.inverse())));
+  }
+  // One camera overhead, looking straight down (its image "down" level): z-up, alone or above a ring.
   Rig overhead;
   overhead.cameras.push_back({.name = "top", .world_from_depth = Rigid3d(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()))});
   overhead.cameras[0].world_from_depth.translation() = Eigen::Vector3d(0, 0, 3);
   ASSERT_NEAR((overhead.cameras[0].world_from_depth.linear() * Eigen::Vector3d::UnitZ()).z(), -1, 1e-12);
   EXPECT_TRUE(world_looks_z_up(overhead));
-  ring.cameras.push_back(overhead.cameras[0]);
-  EXPECT_TRUE(world_looks_z_up(ring));
+  Rig ring_and_overhead = ring_of(4, 1.3);
+  ring_and_overhead.cameras.push_back(overhead.cameras[0]);
+  EXPECT_TRUE(world_looks_z_up(ring_and_overhead));
+  // One level camera turned on its side: nothing tells.
+  EXPECT_FALSE(world_looks_z_up(Rig{.cameras = {ring_of(1, 1.3, portrait).cameras[0]}}));
   EXPECT_FALSE(world_looks_z_up(Rig{}));
 }
 
