@@ -167,7 +167,9 @@ struct PixelRays {
 
   //! The ray of the pixels of row v: ray(u, v) = row_ray(v) + u·ray_du.
   Eigen::Vector3f row_ray(int v) const { return ray0 + static_cast<float>(v) * ray_dv; }
-  Eigen::Vector3f point(int u, int v, float z) const { return origin + z * (row_ray(v) + static_cast<float>(u) * ray_du); }
+  //! Pixel (u, v)'s ray: the point at depth z is origin + z·ray(u, v).
+  Eigen::Vector3f ray(int u, int v) const { return row_ray(v) + static_cast<float>(u) * ray_du; }
+  Eigen::Vector3f point(int u, int v, float z) const { return origin + z * ray(u, v); }
 };
 
 }  // namespace zipfusion

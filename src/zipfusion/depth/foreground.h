@@ -58,7 +58,7 @@ inline float foreground_depth(int u, int v, unsigned short raw, const Foreground
   const float z = static_cast<float>(raw) * params.depth_unit_m;
   if (raw == 0 || z < params.min_depth_m || z > params.max_depth_m) return 0.0f;
   if (params.crop) {
-    const Eigen::Vector3f ray = params.world_rays.row_ray(v) + static_cast<float>(u) * params.world_rays.ray_du;
+    const Eigen::Vector3f ray = params.world_rays.ray(u, v);
     const Eigen::Vector3f p = params.world_rays.origin + z * ray;
     Eigen::Vector3f box_min = params.box_min;
     box_min.z() += floor_lift_m(z, ray.z(), params.floor_noise_sigmas);
