@@ -1,11 +1,5 @@
 #include "zipfusion/fusion/clipping.h"
 
-#include <CGAL/Constrained_Delaunay_triangulation_2.h>
-#include <CGAL/Delaunay_triangulation_2.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Triangulation_face_base_with_info_2.h>
-#include <CGAL/Triangulation_vertex_base_with_info_2.h>
-
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
@@ -14,32 +8,16 @@
 #include <limits>
 #include <span>
 
+#include "zipfusion/fusion/seam_triangulation.h"
 #include "zipfusion/fusion/surface_fit.h"
 
 namespace zipfusion {
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-// Vertex info: the seam vertex index; −1 for a vertex CGAL made where two constraints cross.
-struct SeamInfo {
-  int index = -1;
-};
-using VertexBase = CGAL::Triangulation_vertex_base_with_info_2<SeamInfo, Kernel>;
-// Face info: set before the seam's output is chosen (set_face_info).
-struct SeamFace {
-  Eigen::Vector3f normal = Eigen::Vector3f::Zero();
-  bool output = false;
-};
-using FaceBase = CGAL::Constrained_triangulation_face_base_2<Kernel, CGAL::Triangulation_face_base_with_info_2<SeamFace, Kernel>>;
-using TriangulationData = CGAL::Triangulation_data_structure_2<VertexBase, FaceBase>;
-// Constraints from two meshes may cross where their borders overlap; Exact_predicates_tag lets
-// CGAL split them at an approximate intersection instead of failing.
-using Delaunay = CGAL::Constrained_Delaunay_triangulation_2<Kernel, TriangulationData, CGAL::Exact_predicates_tag>;
-// The points go into a plain Delaunay triangulation of the same data structure, which then becomes
-// the constrained one (a Delaunay triangulation without constraints is one): the constrained
-// triangulation's flips also restore the constraint flags of the four faces around, and test for
-// them and for infinite faces, to the same result while there are none.
-using PlainDelaunay = CGAL::Delaunay_triangulation_2<Kernel, TriangulationData>;
+// Short names for the seam's triangulations (seam_triangulation.h).
+using Kernel = SeamKernel;
+using Delaunay = SeamTriangulation;
+using PlainDelaunay = SeamPointTriangulation;
 
 // The seeds of a pair's seams in one mesh: its boundary triangles inside the mask. Both
 // meshes' seeds are chosen once per pair, before either's seam is found (the bit matrices do not
@@ -230,50 +208,13 @@ void clear_pixel_marks(const MeshView& view, SeamScratch& s) {
   }
 }
 
-// Makes the kept edge (from, to) an edge of the triangulation by one flip, where it crosses exactly
-// one edge, the diagonal of the quadrilateral of the two triangles that have `from` and `to` as
-// their far corners (mostly the pixel grid's other diagonal); false where it does not, or where
-// that diagonal is constrained or a corner lies on the kept edge. CGAL's constraint insertion
-// would give the same triangulation (each side of the kept edge is one triangle, constrained
-// Delaunay as it is) after walking the segment and re-triangulating the hole with lists it
-// allocates, about 3 000 instructions more a constraint (stitching 5 % fewer without the filter).
-bool flip_into_edge(Delaunay& triangulation, Delaunay::Vertex_handle from, Delaunay::Vertex_handle to) {
-  Delaunay::Face_circulator face = triangulation.incident_faces(from), first = face;
-  if (face == nullptr) return false;
-  do {
-    if (triangulation.is_infinite(face)) continue;
-    const int i = face->index(from);
-    const Delaunay::Face_handle across = face->neighbor(i);
-    if (triangulation.is_infinite(across) || across->vertex(triangulation.mirror_index(face, i)) != to) continue;
-    if (face->is_constrained(i)) return false;
-    const Kernel::Point_2 &a = face->vertex(Delaunay::cw(i))->point(), &b = face->vertex(Delaunay::ccw(i))->point();
-    const CGAL::Orientation side_a = triangulation.orientation(from->point(), to->point(), a);
-    const CGAL::Orientation side_b = triangulation.orientation(from->point(), to->point(), b);
-    if (side_a == CGAL::COLLINEAR || side_b == CGAL::COLLINEAR || side_a == side_b) return false;
-    Delaunay::Face_handle flipped = face;
-    triangulation.flip(flipped, i);
-    return true;
-  } while (++face != first);
-  return false;
-}
-
-// Marks the triangulation edge (from, to) as constrained on both its sides; false when it is not an edge.
-bool mark_constrained(Delaunay& triangulation, Delaunay::Vertex_handle from, Delaunay::Vertex_handle to) {
-  Delaunay::Face_handle face;
-  int edge;
-  if (triangulation.dimension() != 2 || !triangulation.is_edge(from, to, face, edge)) return false;
-  face->set_constraint(edge, true);
-  face->neighbor(edge)->set_constraint(triangulation.mirror_index(face, edge), true);
-  return true;
-}
-
 // Sets a face's info: whether it is output (`output(i0, i1, i2)` of its seam vertices; never at
-// a crossing of two constraints, where CGAL made a vertex) and its normal in 3-D, its vertices
+// a crossing of two constraints, where `constrain` made a vertex) and its normal in 3-D, its vertices
 // taken in their (counter-clockwise) order.
 template <typename Output>
 void set_face_info(Delaunay::Face_handle f, const std::vector<Eigen::Vector3f>& positions, Output&& output) {
   const int i0 = f->vertex(0)->info().index, i1 = f->vertex(1)->info().index, i2 = f->vertex(2)->info().index;
-  SeamFace& info = f->info();
+  SeamFaceInfo& info = f->info();
   info.output = i0 >= 0 && i1 >= 0 && i2 >= 0 && output(i0, i1, i2);
   if (info.output) info.normal = (positions[i1] - positions[i0]).cross(positions[i2] - positions[i0]).normalized();
 }
@@ -1242,11 +1183,11 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     seam.used_pca = true;
   }
   std::vector<Eigen::Vector2f> flat(seam.vertices.size());
-  std::vector<std::pair<Kernel::Point_2, SeamInfo>> points;
+  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>> points;
   points.reserve(seam.vertices.size());
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     flat[i] = layout(positions[i]);
-    points.emplace_back(Kernel::Point_2(flat[i].x(), flat[i].y()), SeamInfo{static_cast<int>(i)});
+    points.emplace_back(Kernel::Point_2(flat[i].x(), flat[i].y()), SeamVertexInfo{static_cast<int>(i)});
   }
 
   // The seam vertices come in the order their triangles were collected, along the boundaries, so
@@ -1264,7 +1205,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   PlainDelaunay points_only;
   std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
   Delaunay::Face_handle hint;
-  auto insert_point = [&](const std::pair<Kernel::Point_2, SeamInfo>& point) {
+  auto insert_point = [&](const std::pair<Kernel::Point_2, SeamVertexInfo>& point) {
     if (handle[point.second.index] != Delaunay::Vertex_handle()) return;  // in the skeleton
     const Delaunay::Vertex_handle v = points_only.insert(point.first, hint);
     // A seam vertex at the 2-D position of an earlier one shares that vertex and its index.
@@ -1278,19 +1219,12 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   for (const auto& point : points) insert_point(point);
   Delaunay triangulation;
   triangulation.swap(points_only);
-  // With the seam laid out at locally averaged depth (the default; filtered depth laid out as
-  // measured is about as regular), about 90 % of the kept edges are already edges of the triangulation:
-  // those are marked as constrained in place (which keeps it constrained Delaunay), without
-  // CGAL's general insertion, which first looks for vertices on the segment and allocates a work
-  // stack per call (clipping 9 % fewer instructions).
-  // Of the others, most cross one edge and take one flip (flip_into_edge).
-  for (const auto& [i, j] : constraints) {
-    if (handle[i] == handle[j] || mark_constrained(triangulation, handle[i], handle[j])) continue;
-    if (triangulation.dimension() == 2 && flip_into_edge(triangulation, handle[i], handle[j]) && mark_constrained(triangulation, handle[i], handle[j])) {
-      continue;
-    }
-    triangulation.insert_constraint(handle[i], handle[j]);
-  }
+  // Every kept edge becomes a constraint (constrain). With the seam laid out at locally averaged
+  // depth (the default; filtered depth laid out as measured is about as regular), about 90 % of
+  // them are already edges of the triangulation and are only marked; the others are flipped into
+  // place.
+  ConstraintScratch flips;
+  for (const auto& [i, j] : constraints) constrain(triangulation, handle[i], handle[j], flips);
   const float max_edge2 = options.max_edge * options.max_edge;
   FairingScratch fairing;
   fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat, fairing);

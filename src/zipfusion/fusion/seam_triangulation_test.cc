@@ -1,0 +1,170 @@
+#include "zipfusion/fusion/seam_triangulation.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include "zipfusion/core/allocation_count_test_util.h"
+
+namespace zipfusion {
+namespace {
+
+using Point = SeamKernel::Point_2;
+using Vertex = SeamTriangulation::Vertex_handle;
+
+// A 20 × 20 grid of points 1 apart, each moved by up to 0.4 in x and y: in general position (no
+// four points on a circle, no three on a line), so the constrained Delaunay triangulation of any
+// constraints is unique.
+std::vector<Point> jittered_grid(std::mt19937& random) {
+  std::uniform_real_distribution<double> jitter(-0.4, 0.4);
+  std::vector<Point> points;
+  for (int y = 0; y < 20; ++y) {
+    for (int x = 0; x < 20; ++x) points.emplace_back(x + jitter(random), y + jitter(random));
+  }
+  return points;
+}
+
+// The points triangulated as the seam is: a plain Delaunay triangulation swapped into the
+// constrained one. handle[i]: point i's vertex.
+void triangulate(const std::vector<Point>& points, SeamTriangulation& triangulation, std::vector<Vertex>& handle) {
+  SeamPointTriangulation points_only;
+  handle.clear();
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vertex v = points_only.insert(points[i]);
+    v->info().index = static_cast<int>(i);
+    handle.push_back(v);
+  }
+  triangulation.swap(points_only);
+}
+
+// Segments between points 1.5 to 6 apart, which cross several edges of the triangulation each.
+// With `crossing`, any; without, none crosses or touches another but at a shared end.
+std::vector<std::pair<int, int>> random_segments(const std::vector<Point>& points, int count, bool crossing, std::mt19937& random) {
+  std::uniform_int_distribution<int> pick(0, static_cast<int>(points.size()) - 1);
+  std::vector<std::pair<int, int>> segments;
+  for (int tries = 0; static_cast<int>(segments.size()) < count && tries < 100000; ++tries) {
+    const int i = pick(random), j = pick(random);
+    const double length = std::sqrt(CGAL::squared_distance(points[i], points[j]));
+    if (i == j || length < 1.5 || length > 6) continue;
+    const SeamKernel::Segment_2 candidate(points[i], points[j]);
+    const bool clear = crossing || std::none_of(segments.begin(), segments.end(), [&](const std::pair<int, int>& s) {
+                         const bool shares_end = s.first == i || s.first == j || s.second == i || s.second == j;
+                         return !shares_end && CGAL::do_intersect(candidate, SeamKernel::Segment_2(points[s.first], points[s.second]));
+                       });
+    if (clear) segments.emplace_back(i, j);
+  }
+  return segments;
+}
+
+// Every edge of the triangulation as its two corners' places (a vertex made at a crossing has
+// no index), sorted, and whether it is constrained.
+using PlacedEdge = std::pair<std::pair<Point, Point>, bool>;
+std::vector<PlacedEdge> placed_edges(const SeamTriangulation& triangulation) {
+  std::vector<PlacedEdge> edges;
+  for (auto e = triangulation.finite_edges_begin(); e != triangulation.finite_edges_end(); ++e) {
+    Point p = e->first->vertex(SeamTriangulation::cw(e->second))->point();
+    Point q = e->first->vertex(SeamTriangulation::ccw(e->second))->point();
+    if (q < p) std::swap(p, q);
+    edges.push_back({{p, q}, e->first->is_constrained(e->second)});
+  }
+  std::sort(edges.begin(), edges.end());
+  return edges;
+}
+
+// How many of the segments are not edges of the triangulation: those that `constrain` must flip
+// (or split) into place rather than mark.
+int segments_not_edges(const SeamTriangulation& triangulation, const std::vector<Vertex>& handle,
+                       const std::vector<std::pair<int, int>>& segments) {
+  int count = 0;
+  for (const auto& [i, j] : segments) count += !triangulation.is_edge(handle[i], handle[j]);
+  return count;
+}
+
+TEST(Constrain, GivesCgalsConstrainedDelaunayTriangulation) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    std::mt19937 random(seed);
+    const std::vector<Point> points = jittered_grid(random);
+    const std::vector<std::pair<int, int>> segments = random_segments(points, 40, false, random);
+    SeamTriangulation by_cgal, by_flips;
+    std::vector<Vertex> cgal_handle, flips_handle;
+    triangulate(points, by_cgal, cgal_handle);
+    triangulate(points, by_flips, flips_handle);
+    ASSERT_GE(segments_not_edges(by_flips, flips_handle, segments), 30) << "seed " << seed;
+    ConstraintScratch scratch;
+    for (const auto& [i, j] : segments) {
+      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
+      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
+    }
+    EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
+    EXPECT_EQ(by_flips.number_of_vertices(), points.size()) << "seed " << seed;
+    EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
+    for (const auto& [i, j] : segments) EXPECT_TRUE(by_flips.is_edge(flips_handle[i], flips_handle[j])) << "seed " << seed;
+  }
+}
+
+// Crossing constraints are split at a vertex made where they cross, as CGAL splits them; the
+// vertices may differ from CGAL's in their last bits, so each is matched to CGAL's nearest.
+TEST(Constrain, SplitsCrossingConstraintsAsCgalDoes) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    std::mt19937 random(seed);
+    const std::vector<Point> points = jittered_grid(random);
+    const std::vector<std::pair<int, int>> segments = random_segments(points, 30, true, random);
+    SeamTriangulation by_cgal, by_flips;
+    std::vector<Vertex> cgal_handle, flips_handle;
+    triangulate(points, by_cgal, cgal_handle);
+    triangulate(points, by_flips, flips_handle);
+    ConstraintScratch scratch;
+    for (const auto& [i, j] : segments) {
+      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
+      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
+    }
+    ASSERT_GE(by_cgal.number_of_vertices(), points.size() + 10) << "seed " << seed << ": too few crossings to test";
+    EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
+    ASSERT_EQ(by_flips.number_of_vertices(), by_cgal.number_of_vertices()) << "seed " << seed;
+    // Move each crossing vertex of by_flips onto CGAL's within 1e-9, then compare the edges.
+    std::vector<Point> cgal_crossings;
+    for (auto v = by_cgal.finite_vertices_begin(); v != by_cgal.finite_vertices_end(); ++v) {
+      if (v->info().index < 0) cgal_crossings.push_back(v->point());
+    }
+    for (auto v = by_flips.finite_vertices_begin(); v != by_flips.finite_vertices_end(); ++v) {
+      if (v->info().index >= 0) continue;
+      const auto nearest = std::min_element(cgal_crossings.begin(), cgal_crossings.end(), [&](const Point& p, const Point& q) {
+        return CGAL::squared_distance(p, v->point()) < CGAL::squared_distance(q, v->point());
+      });
+      ASSERT_LT(CGAL::squared_distance(*nearest, v->point()), 1e-18) << "seed " << seed;
+      v->set_point(*nearest);
+    }
+    EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
+  }
+}
+
+TEST(Constrain, AllocatesNothingOnceItsScratchHasGrown) {
+  std::mt19937 random(7);
+  const std::vector<Point> points = jittered_grid(random);
+  const std::vector<std::pair<int, int>> segments = random_segments(points, 40, false, random);
+  ConstraintScratch scratch;
+  auto allocations = [&](bool by_cgal) {
+    SeamTriangulation triangulation;
+    std::vector<Vertex> handle;
+    triangulate(points, triangulation, handle);
+    const long long before = g_allocations.load();
+    for (const auto& [i, j] : segments) {
+      if (by_cgal) {
+        triangulation.insert_constraint(handle[i], handle[j]);
+      } else {
+        constrain(triangulation, handle[i], handle[j], scratch);
+      }
+    }
+    return g_allocations.load() - before;
+  };
+  allocations(false);  // grows the scratch
+  EXPECT_EQ(allocations(false), 0);
+  EXPECT_GT(allocations(true), 40);  // CGAL's insertion, for comparison: at least its work stack each
+}
+
+}  // namespace
+}  // namespace zipfusion
