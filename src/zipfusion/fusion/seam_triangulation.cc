@@ -1,6 +1,9 @@
 #include "zipfusion/fusion/seam_triangulation.h"
 
+#include <CGAL/intersections.h>
+
 #include <cstddef>
+#include <optional>
 
 namespace zipfusion {
 namespace {
@@ -41,50 +44,92 @@ void restore_delaunay(SeamTriangulation& triangulation, ConstraintScratch& s) {
   }
 }
 
-bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& s, int depth);
+// What constrain_by_flips did with a segment.
+enum class Flipped {
+  kDone,        // it is a constrained edge now
+  kSplit,       // it crossed a constraint: its part up to the crossing is done, the rest is left
+  kLeftToCgal,  // nothing, or flips that stopped short: CGAL's insertion is to finish it
+};
 
-// `constrain` inside `depth` crossings: by flips, else by CGAL's insertion.
+Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& s, int depth, Vertex& rest_from);
+
+// `constrain` below `depth` nested crossings: by flips, each crossing it meets on the way split
+// off in turn, and what flips cannot do by CGAL's insertion.
 void constrain_at_depth(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& s, int depth) {
-  if (constrain_by_flips(triangulation, from, to, s, depth)) return;
-  triangulation.insert_constraint(from, to);
-  restore_delaunay(triangulation, s);  // after flips that stopped short, if any
+  for (;;) {
+    Vertex rest_from;
+    switch (constrain_by_flips(triangulation, from, to, s, depth, rest_from)) {
+      case Flipped::kDone:
+        return;
+      case Flipped::kSplit:
+        from = rest_from;
+        continue;
+      case Flipped::kLeftToCgal:
+        ++s.left_to_cgal;
+        triangulation.insert_constraint(from, to);
+        restore_delaunay(triangulation, s);  // after flips that stopped short, if any
+        return;
+    }
+  }
 }
 
-// Where the segment (from, to) crosses the constrained edge `crossed`, makes a vertex and
-// constrains the four pieces, as CGAL's insertion does where two constraints cross (its vertex,
-// like this one, has no seam index, and no output face touches it). The point is computed in
-// floating point; where it falls outside the two triangles beside the crossed edge (the segments
-// nearly parallel), or on one of their corners, nothing changes and false is returned.
-bool split_at_crossing(SeamTriangulation& triangulation, Vertex from, Vertex to, Edge crossed, ConstraintScratch& s, int depth) {
+// The point where segment (a, b) crosses the constrained edge (c, d), as CGAL's insertion finds it
+// (its Exact_predicates_tag path: the kernel's intersection of the two segments, taken with the
+// crossed edge's ends in CGAL's order, then snapped to an end within 4 units in the last place),
+// so that the vertex made there is CGAL's to the bit; none where the kernel finds no single point.
+std::optional<Point> crossing_point(const Point& a, const Point& b, const Point& c, const Point& d) {
+  const auto crossing = CGAL::intersection(SeamKernel::Segment_2(a, b), SeamKernel::Segment_2(c, d));
+  if (!crossing) return std::nullopt;
+#if CGAL_VERSION_MAJOR >= 6
+  const Point* found = std::get_if<Point>(&*crossing);
+#else
+  const Point* found = boost::get<Point>(&*crossing);
+#endif
+  if (found == nullptr) return std::nullopt;
+  Point x = *found;
+  if (x == a || x == b || x == c || x == d) return x;
+  CGAL::Bbox_2 around = x.bbox();
+  around.dilate(4);
+  for (const Point* end : {&a, &b, &c, &d}) {
+    if (CGAL::do_overlap(around, end->bbox())) x = *end;
+  }
+  return x;
+}
+
+// The segment (from, to) crosses the constrained edge `crossed` of its walk's face: makes the
+// crossing a vertex v, as CGAL's insertion does where two constraints cross (where it snapped to
+// an end of the crossed edge, that end), constrains the crossed edge's two halves and (from, v),
+// and returns v, from which the rest of the segment goes on; a null handle, with nothing changed,
+// where CGAL's insertion must decide (the point outside the two triangles beside the crossed
+// edge, where CGAL constructs it again more exactly, or on one of the segment's ends or the far
+// corners of those triangles).
+Vertex split_at_crossing(SeamTriangulation& triangulation, Vertex from, Vertex to, Edge crossed, ConstraintScratch& s, int depth) {
   const auto [face, i] = crossed;
-  const Vertex c = face->vertex(ccw(i)), d = face->vertex(cw(i));
+  // CGAL's names: the crossed edge from c (clockwise of the far corner in the walk's face) to d.
+  const Vertex c = face->vertex(cw(i)), d = face->vertex(ccw(i));
   const Face beyond = face->neighbor(i);
-  const Point &a = from->point(), &b = to->point(), &pc = c->point(), &pd = d->point();
-  const double ux = b.x() - a.x(), uy = b.y() - a.y(), vx = pd.x() - pc.x(), vy = pd.y() - pc.y();
-  const double denominator = ux * vy - uy * vx;
-  if (denominator == 0) return false;
-  const double t = ((pc.x() - a.x()) * vy - (pc.y() - a.y()) * vx) / denominator;
-  const Point x(a.x() + t * ux, a.y() + t * uy);
+  const Vertex near_corner = face->vertex(i), far_corner = beyond->vertex(triangulation.mirror_index(face, i));
+  const std::optional<Point> crossing = crossing_point(from->point(), to->point(), c->point(), d->point());
+  if (!crossing) return {};
+  const Point& x = *crossing;
   auto inside_or_on = [&](Face f) {
     for (int k = 0; k < 3; ++k) {
       if (triangulation.orientation(f->vertex(k)->point(), f->vertex(ccw(k))->point(), x) == CGAL::RIGHT_TURN) return false;
     }
     return true;
   };
-  if (x == a || x == b || x == pc || x == pd || !(inside_or_on(face) || inside_or_on(beyond))) return false;
+  if (!(inside_or_on(face) || inside_or_on(beyond))) return {};
+  for (const Vertex corner : {from, to, near_corner, far_corner}) {
+    if (x == corner->point()) return {};
+  }
+  if (x == c->point()) return c;  // the crossed constraint stays whole; the segment bends through c
+  if (x == d->point()) return d;
   face->set_constraint(i, false);
   beyond->set_constraint(triangulation.mirror_index(face, i), false);
-  const size_t vertices = triangulation.number_of_vertices();
-  const Vertex v = triangulation.insert(x, face);
-  if (triangulation.number_of_vertices() != vertices + 1) {  // x was a vertex after all
-    constrain_at_depth(triangulation, c, d, s, depth + 1);
-    return false;
-  }
+  const Vertex v = triangulation.insert(x, face);  // a new vertex: x is no corner of the two triangles it lies in
   constrain_at_depth(triangulation, c, v, s, depth + 1);
   constrain_at_depth(triangulation, v, d, s, depth + 1);
-  constrain_at_depth(triangulation, from, v, s, depth + 1);
-  constrain_at_depth(triangulation, v, to, s, depth);  // the rest of the segment: one crossing fewer
-  return true;
+  return v;
 }
 
 // Constrains (from, to) by flipping the edges it crosses (Sloan's insertion of a constraint,
@@ -92,13 +137,14 @@ bool split_at_crossing(SeamTriangulation& triangulation, Vertex from, Vertex to,
 // crosses goes back into the queue, and one that does not waits for the Delaunay test
 // (restore_delaunay). That gives the constrained Delaunay triangulation that CGAL's insertion
 // gives (up to the choice among co-circular points). Where it crosses a constrained edge, the
-// two are split where they cross (split_at_crossing). False, for CGAL to finish, where a vertex
-// lies on the segment, where the crossing cannot be split, past a few nested crossings, or where
-// the queue does not empty in a generous number of steps. Most kept edges cross nothing (they
-// are marked in place) or one diagonal (one flip).
-bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& s, int depth) {
-  if (from == to || mark_constrained(triangulation, from, to)) return true;
-  if (triangulation.dimension() != 2 || depth > 8) return false;
+// segment is split where they cross (split_at_crossing), its part up to there constrained, and the
+// rest left to the caller (kSplit, rest_from). Left to CGAL: a vertex on the segment, a crossing
+// split_at_crossing leaves to it, more than eight nested crossings, an infinite face on the way,
+// or a queue that does not empty in a generous number of steps. Most kept edges cross nothing
+// (they are marked in place) or one diagonal (one flip).
+Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& s, int depth, Vertex& rest_from) {
+  if (from == to || mark_constrained(triangulation, from, to)) return Flipped::kDone;
+  if (triangulation.dimension() != 2 || depth > 8) return Flipped::kLeftToCgal;
   const Point &p_from = from->point(), &p_to = to->point();
   auto side_of = [&](Vertex v) { return triangulation.orientation(p_from, p_to, v->point()); };
   // The face around `from` that the segment leaves through: its corner after `from` (counter-
@@ -106,7 +152,7 @@ bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to
   Face face;
   int i = -1;
   SeamTriangulation::Face_circulator around = triangulation.incident_faces(from), first = around;
-  if (around == nullptr) return false;
+  if (around == nullptr) return Flipped::kLeftToCgal;
   do {
     if (triangulation.is_infinite(around)) continue;
     const int k = around->index(from);
@@ -116,20 +162,26 @@ bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to
       break;
     }
   } while (++around != first);
-  if (i < 0) return false;  // a vertex next to `from` lies on the segment
+  if (i < 0) return Flipped::kLeftToCgal;  // a vertex next to `from` lies on the segment
   // Walk to `to`, listing the crossed edges as (right corner, left corner).
   s.crossing.clear();
   for (;;) {
-    if (face->is_constrained(i)) return split_at_crossing(triangulation, from, to, {face, i}, s, depth);
+    if (face->is_constrained(i)) {
+      const Vertex v = split_at_crossing(triangulation, from, to, {face, i}, s, depth);
+      if (v == Vertex()) return Flipped::kLeftToCgal;
+      constrain_at_depth(triangulation, from, v, s, depth + 1);
+      rest_from = v;
+      return Flipped::kSplit;
+    }
     const Vertex right = face->vertex(ccw(i)), left = face->vertex(cw(i));
     s.crossing.emplace_back(right, left);
     const Face next = face->neighbor(i);
-    if (triangulation.is_infinite(next)) return false;
+    if (triangulation.is_infinite(next)) return Flipped::kLeftToCgal;
     const int j = triangulation.mirror_index(face, i);
     const Vertex far = next->vertex(j);  // next's corners, counter-clockwise: far, left, right
     if (far == to) break;
     const CGAL::Orientation side = side_of(far);
-    if (side == CGAL::COLLINEAR) return false;
+    if (side == CGAL::COLLINEAR) return Flipped::kLeftToCgal;
     face = next;
     i = side == CGAL::LEFT_TURN ? ccw(j) : cw(j);  // the corner opposite the next crossed edge
   }
@@ -138,11 +190,11 @@ bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to
   s.created.clear();
   size_t head = 0, steps_left = 64 * s.crossing.size() + 64;
   while (head < s.crossing.size()) {
-    if (steps_left-- == 0) return false;
+    if (steps_left-- == 0) return Flipped::kLeftToCgal;
     const auto [u, w] = s.crossing[head++];
     Face f;
     int e;
-    if (!triangulation.is_edge(u, w, f, e)) return false;
+    if (!triangulation.is_edge(u, w, f, e)) return Flipped::kLeftToCgal;
     const Vertex p = f->vertex(e), q = f->neighbor(e)->vertex(triangulation.mirror_index(f, e));
     const CGAL::Orientation side_u = triangulation.orientation(p->point(), q->point(), u->point());
     const CGAL::Orientation side_w = triangulation.orientation(p->point(), q->point(), w->point());
@@ -163,9 +215,9 @@ bool constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex to
       head = 0;
     }
   }
-  if (!mark_constrained(triangulation, from, to)) return false;
+  if (!mark_constrained(triangulation, from, to)) return Flipped::kLeftToCgal;
   restore_delaunay(triangulation, s);
-  return true;
+  return Flipped::kDone;
 }
 
 }  // namespace

@@ -45,18 +45,24 @@ struct ConstraintScratch {
   using VertexPair = std::pair<SeamTriangulation::Vertex_handle, SeamTriangulation::Vertex_handle>;
   std::vector<VertexPair> crossing;  //!< a queue: the edges that cross the constraint
   std::vector<VertexPair> created;   //!< the edges flips made beside it, to be made Delaunay again
+  long left_to_cgal = 0;             //!< segments (or their rests) given to CGAL's insertion, counted up
 };
 
 //! Makes the segment between two vertices a constrained edge of the triangulation, which stays
 //! constrained Delaunay: the triangulation CGAL's `insert_constraint(from, to)` makes, up to the
-//! choice among co-circular points and, where the segment crosses a constrained edge, the last
-//! bits of the vertex made at the crossing (its info has index −1; both constraints are split
-//! there). An edge that is already there is only marked; one that crosses edges is flipped into
-//! place (Sloan's insertion, 1993), then the edges the flips made are flipped until Delaunay
-//! (Lawson). Allocates nothing once `scratch` has grown, except where it leaves the constraint to
-//! CGAL's insertion: a vertex on the segment, a crossing whose point falls outside the two
-//! triangles beside the crossed edge, more than eight nested crossings. A triangulation of
-//! dimension below 2 also goes to CGAL. Precondition: both vertices belong to `triangulation`.
+//! choice among co-circular points. An edge that is already there is only marked; one that
+//! crosses edges is flipped into place (Sloan's insertion, 1993), then the edges the flips made
+//! are flipped until Delaunay (Lawson). Where the segment crosses a constrained edge, both are
+//! split at a vertex made where they cross (its info has index −1), the point constructed and
+//! snapped to a nearby end as CGAL's insertion does, so that it is CGAL's to the bit. Allocates
+//! nothing once `scratch` has grown (CGAL's containers aside, when a crossing's vertex needs a new
+//! block), except where it leaves the segment, or what is left of it, to CGAL's insertion
+//! (`scratch.left_to_cgal` counts those): a vertex on the segment, a crossing whose point lies
+//! outside the two triangles beside the crossed edge (CGAL then constructs it more exactly) or
+//! on one of their corners other than the crossed edge's ends, more than eight nested crossings,
+//! an infinite face on the way, flips that take more than 64 steps a crossed edge (a guard:
+//! Sloan's take a few), or a triangulation of dimension below 2. Precondition: both vertices
+//! belong to `triangulation`.
 void constrain(SeamTriangulation& triangulation, SeamTriangulation::Vertex_handle from, SeamTriangulation::Vertex_handle to,
                ConstraintScratch& scratch);
 

@@ -99,6 +99,7 @@ TEST(Constrain, GivesCgalsConstrainedDelaunayTriangulation) {
       by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
       constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
     }
+    EXPECT_EQ(scratch.left_to_cgal, 0) << "seed " << seed;
     EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
     EXPECT_EQ(by_flips.number_of_vertices(), points.size()) << "seed " << seed;
     EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
@@ -106,8 +107,8 @@ TEST(Constrain, GivesCgalsConstrainedDelaunayTriangulation) {
   }
 }
 
-// Crossing constraints are split at a vertex made where they cross, as CGAL splits them; the
-// vertices may differ from CGAL's in their last bits, so each is matched to CGAL's nearest.
+// Crossing constraints are split at a vertex made where they cross, constructed and snapped as
+// CGAL constructs and snaps it: the same triangulation to the bit, none of it left to CGAL.
 TEST(Constrain, SplitsCrossingConstraintsAsCgalDoes) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     std::mt19937 random(seed);
@@ -123,22 +124,77 @@ TEST(Constrain, SplitsCrossingConstraintsAsCgalDoes) {
       constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
     }
     ASSERT_GE(by_cgal.number_of_vertices(), points.size() + 10) << "seed " << seed << ": too few crossings to test";
+    EXPECT_EQ(scratch.left_to_cgal, 0) << "seed " << seed;
     EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
-    ASSERT_EQ(by_flips.number_of_vertices(), by_cgal.number_of_vertices()) << "seed " << seed;
-    // Move each crossing vertex of by_flips onto CGAL's within 1e-9, then compare the edges.
-    std::vector<Point> cgal_crossings;
-    for (auto v = by_cgal.finite_vertices_begin(); v != by_cgal.finite_vertices_end(); ++v) {
-      if (v->info().index < 0) cgal_crossings.push_back(v->point());
-    }
-    for (auto v = by_flips.finite_vertices_begin(); v != by_flips.finite_vertices_end(); ++v) {
-      if (v->info().index >= 0) continue;
-      const auto nearest = std::min_element(cgal_crossings.begin(), cgal_crossings.end(), [&](const Point& p, const Point& q) {
-        return CGAL::squared_distance(p, v->point()) < CGAL::squared_distance(q, v->point());
-      });
-      ASSERT_LT(CGAL::squared_distance(*nearest, v->point()), 1e-18) << "seed " << seed;
-      v->set_point(*nearest);
-    }
+    EXPECT_EQ(by_flips.number_of_vertices(), by_cgal.number_of_vertices()) << "seed " << seed;
     EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
+  }
+}
+
+// A crossing two units in the last place from an end of the crossed edge snaps to that end, as
+// in CGAL: no vertex is made a hair's breadth from another, and the crossing segment bends
+// through the end.
+TEST(Constrain, SnapsACrossingBesideAnEndAsCgalDoes) {
+  const double just_above_1 = std::nextafter(std::nextafter(1.0, 2.0), 2.0);
+  const std::vector<Point> points = {{-1, -1}, {3, -1}, {3, 4}, {-1, 4}, {1, 1}, {1, 3}, {0, just_above_1}, {2, just_above_1}};
+  SeamTriangulation by_cgal, by_flips;
+  std::vector<Vertex> cgal_handle, flips_handle;
+  triangulate(points, by_cgal, cgal_handle);
+  triangulate(points, by_flips, flips_handle);
+  ConstraintScratch scratch;
+  for (const auto& [i, j] : {std::pair{4, 5}, std::pair{6, 7}}) {
+    by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
+    constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
+  }
+  EXPECT_EQ(by_cgal.number_of_vertices(), points.size());
+  EXPECT_EQ(by_flips.number_of_vertices(), points.size());
+  EXPECT_EQ(scratch.left_to_cgal, 0);
+  EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal));
+  EXPECT_TRUE(by_flips.is_edge(flips_handle[6], flips_handle[4]) && by_flips.is_edge(flips_handle[4], flips_handle[7]));
+}
+
+// Points on an integer grid: four on a circle in every square, three on a line along every row,
+// column and diagonal, and segments that run through grid points (left to CGAL's insertion from
+// there on). The result is still CGAL's (both break ties among co-circular points the same way),
+// and every segment is covered by constrained edges through the grid points on it.
+TEST(Constrain, MatchesCgalOnAnIntegerGrid) {
+  std::vector<Point> points;
+  for (int y = 0; y < 12; ++y) {
+    for (int x = 0; x < 12; ++x) points.emplace_back(x, y);
+  }
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    std::mt19937 random(seed);
+    const std::vector<std::pair<int, int>> segments = random_segments(points, 25, false, random);
+    SeamTriangulation by_cgal, by_flips;
+    std::vector<Vertex> cgal_handle, flips_handle;
+    triangulate(points, by_cgal, cgal_handle);
+    triangulate(points, by_flips, flips_handle);
+    ConstraintScratch scratch;
+    for (const auto& [i, j] : segments) {
+      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
+      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
+    }
+    EXPECT_GT(scratch.left_to_cgal, 0) << "seed " << seed << ": no segment through a grid point";
+    EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
+    EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
+    for (const auto& [i, j] : segments) {
+      // The grid points on the segment, in order from i: each next to the one before by a constrained edge.
+      std::vector<Vertex> on_segment;
+      for (const Vertex v : flips_handle) {
+        if (CGAL::collinear(points[i], points[j], v->point()) && CGAL::collinear_are_ordered_along_line(points[i], v->point(), points[j])) {
+          on_segment.push_back(v);
+        }
+      }
+      std::sort(on_segment.begin(), on_segment.end(), [&](Vertex u, Vertex v) {
+        return CGAL::squared_distance(points[i], u->point()) < CGAL::squared_distance(points[i], v->point());
+      });
+      for (size_t k = 0; k + 1 < on_segment.size(); ++k) {
+        SeamTriangulation::Face_handle f;
+        int e = 0;
+        ASSERT_TRUE(by_flips.is_edge(on_segment[k], on_segment[k + 1], f, e)) << "seed " << seed;
+        EXPECT_TRUE(f->is_constrained(e)) << "seed " << seed;
+      }
+    }
   }
 }
 
