@@ -249,11 +249,19 @@ class KeptEdges {
     Eigen::Vector3f third;  // where side.third_vertex is −1 (and the edge has a single kept side)
   };
 
-  KeptEdges(const MeshView& a, const MeshView& b, const TakenSeam& taken) : first_(taken.seam.vertices.size() + 1, 0) {
+  // Its arrays, reused across seams.
+  struct Storage {
+    std::vector<int> first, next;
+    std::vector<Kept> kept;
+  };
+
+  KeptEdges(const MeshView& a, const MeshView& b, const TakenSeam& taken, Storage& storage) : first_(storage.first), kept_(storage.kept) {
+    first_.assign(taken.seam.vertices.size() + 1, 0);
     for (const auto& [i, j] : taken.constraints) ++first_[i + 1];
     for (size_t i = 1; i < first_.size(); ++i) first_[i] += first_[i - 1];
     kept_.resize(first_.back());
-    std::vector<int> next(first_.begin(), first_.end() - 1);
+    std::vector<int>& next = storage.next;
+    next.assign(first_.begin(), first_.end() - 1);
     for (size_t k = 0; k < taken.constraints.size(); ++k) {
       const KeptSide& side = taken.kept_sides[k];
       const auto [i, j] = taken.constraints[k];
@@ -285,8 +293,8 @@ class KeptEdges {
   const std::vector<Kept>& all() const { return kept_; }
 
  private:
-  std::vector<int> first_;  // per seam vertex: where its kept edges to higher vertices begin in kept_
-  std::vector<Kept> kept_;
+  std::vector<int>& first_;  // per seam vertex: where its kept edges to higher vertices begin in kept_
+  std::vector<Kept>& kept_;
 };
 
 // The creases of a seam's output faces, as the cosines between unit normals (1: no crease): between
@@ -347,26 +355,43 @@ class CreaseWatch {
  public:
   using VertexPair = std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>;
 
+  // Its arrays, reused across seams.
+  struct Storage {
+    // Per seam point, where its kept edges (by their lower end) begin in edge_end_by_third: those
+    // whose kept triangle has it as third corner.
+    std::vector<int> first_with_third, edge_end_by_third, next;
+    std::vector<VertexPair> creased_pairs;         // the creased edges the last look found
+    std::vector<Delaunay::Vertex_handle> changed;  // the points whose faces changed since
+    std::vector<VertexPair> candidates;            // scratch of creased()
+    std::vector<Delaunay::Edge> creased;           // what creased() returns
+    std::vector<Delaunay::Vertex_handle> removed;  // scratch of forget()
+  };
+
   // `handle`: each seam point's vertex, as inserted. `everywhere`: every look is at every edge
   // (the reference the watch must match).
   CreaseWatch(const Delaunay& triangulation, const Creases& creases, const KeptEdges& kept_edges, size_t points,
-              const std::vector<Delaunay::Vertex_handle>& handle, bool everywhere)
-      : triangulation_(triangulation), creases_(creases), handle_(handle), first_with_third_(points + 1, 0), always_everywhere_(everywhere) {
+              const std::vector<Delaunay::Vertex_handle>& handle, bool everywhere, Storage& storage)
+      : triangulation_(triangulation), creases_(creases), handle_(handle), s_(storage), always_everywhere_(everywhere) {
+    std::vector<int>&first_with_third = s_.first_with_third, &edge_end_by_third = s_.edge_end_by_third;
+    s_.creased_pairs.clear();
+    s_.changed.clear();
     // The kept edges' lower ends by their kept triangle's third corner, where that is a seam point.
+    first_with_third.assign(points + 1, 0);
     for (const KeptEdges::Kept& kept : kept_edges.all()) {
-      if (kept.side.third_vertex >= 0) ++first_with_third_[kept.side.third_vertex + 1];
+      if (kept.side.third_vertex >= 0) ++first_with_third[kept.side.third_vertex + 1];
     }
-    for (size_t i = 1; i < first_with_third_.size(); ++i) first_with_third_[i] += first_with_third_[i - 1];
-    std::vector<int> next(first_with_third_.begin(), first_with_third_.end() - 1);
-    edge_end_by_third_.resize(first_with_third_.back());
+    for (size_t i = 1; i < first_with_third.size(); ++i) first_with_third[i] += first_with_third[i - 1];
+    std::vector<int>& next = s_.next;
+    next.assign(first_with_third.begin(), first_with_third.end() - 1);
+    edge_end_by_third.resize(first_with_third.back());
     for (const KeptEdges::Kept& kept : kept_edges.all()) {
-      if (kept.side.third_vertex >= 0) edge_end_by_third_[next[kept.side.third_vertex]++] = kept.i;
+      if (kept.side.third_vertex >= 0) edge_end_by_third[next[kept.side.third_vertex]++] = kept.i;
     }
   }
 
   // The faces around v have changed.
   void faces_changed(Delaunay::Vertex_handle v) {
-    if (!everywhere_) changed_.push_back(v);
+    if (!everywhere_) s_.changed.push_back(v);
   }
 
   // Point v has moved: its faces, and the kept triangles it is the third corner of, have changed.
@@ -375,42 +400,46 @@ class CreaseWatch {
   void point_moved(Delaunay::Vertex_handle v) {
     faces_changed(v);
     const int i = v->info().index;
-    for (int k = first_with_third_[i]; k < first_with_third_[i + 1]; ++k) faces_changed(handle_[edge_end_by_third_[k]]);
+    for (int k = s_.first_with_third[i]; k < s_.first_with_third[i + 1]; ++k) faces_changed(handle_[s_.edge_end_by_third[k]]);
   }
 
   // These vertices are about to leave the triangulation.
-  void forget(std::vector<Delaunay::Vertex_handle> removed_by_address) {
+  void forget(const std::vector<Delaunay::Vertex_handle>& vertices) {
+    std::vector<Delaunay::Vertex_handle>& removed_by_address = s_.removed;
+    removed_by_address.assign(vertices.begin(), vertices.end());
     std::sort(removed_by_address.begin(), removed_by_address.end());
     auto removed = [&](Delaunay::Vertex_handle v) { return std::binary_search(removed_by_address.begin(), removed_by_address.end(), v); };
-    std::erase_if(creased_pairs_, [&](const VertexPair& pair) { return removed(pair.first) || removed(pair.second); });
-    std::erase_if(changed_, removed);
+    std::erase_if(s_.creased_pairs, [&](const VertexPair& pair) { return removed(pair.first) || removed(pair.second); });
+    std::erase_if(s_.changed, removed);
   }
 
   // The edges that may be creased now, each once: every edge whose cosine (Creases) is not at
   // least kCreaseCosine (NaN included, as relax_creases counts it). Valid until the next change.
   const std::vector<Delaunay::Edge>& creased() {
-    creased_.clear();
-    if (triangulation_.dimension() != 2) return creased_;  // no faces (all points on a line)
+    std::vector<Delaunay::Edge>& creased = s_.creased;
+    std::vector<Delaunay::Vertex_handle>& changed = s_.changed;
+    creased.clear();
+    if (triangulation_.dimension() != 2) return creased;  // no faces (all points on a line)
     auto consider = [&](Delaunay::Face_handle f, int i) {
-      if (!(creases_.cosine(f, i) >= kCreaseCosine)) creased_.emplace_back(f, i);
+      if (!(creases_.cosine(f, i) >= kCreaseCosine)) creased.emplace_back(f, i);
     };
     if (everywhere_) {
       for (auto edge = triangulation_.finite_edges_begin(); edge != triangulation_.finite_edges_end(); ++edge) consider(edge->first, edge->second);
       everywhere_ = always_everywhere_;
     } else {
       // The last look's creased edges, and every edge of the faces around the changed points.
-      std::vector<VertexPair>& pairs = candidates_;
-      pairs = creased_pairs_;
-      std::sort(changed_.begin(), changed_.end());
-      changed_.erase(std::unique(changed_.begin(), changed_.end()), changed_.end());
-      for (const Delaunay::Vertex_handle v : changed_) {
+      std::vector<VertexPair>& pairs = s_.candidates;
+      pairs.assign(s_.creased_pairs.begin(), s_.creased_pairs.end());
+      std::sort(changed.begin(), changed.end());
+      changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+      for (const Delaunay::Vertex_handle v : changed) {
         Delaunay::Face_circulator f = triangulation_.incident_faces(v), first = f;
         do {
           if (triangulation_.is_infinite(f)) continue;
           for (int i = 0; i < 3; ++i) pairs.push_back(ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))));
         } while (++f != first);
       }
-      changed_.clear();
+      changed.clear();
       std::sort(pairs.begin(), pairs.end());
       pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
       for (const auto& [u, v] : pairs) {
@@ -419,9 +448,9 @@ class CreaseWatch {
         if (triangulation_.is_edge(u, v, f, i)) consider(f, i);
       }
     }
-    creased_pairs_.clear();
-    for (const auto& [f, i] : creased_) creased_pairs_.push_back(ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))));
-    return creased_;
+    s_.creased_pairs.clear();
+    for (const auto& [f, i] : creased) s_.creased_pairs.push_back(ordered(f->vertex(Delaunay::cw(i)), f->vertex(Delaunay::ccw(i))));
+    return creased;
   }
 
  private:
@@ -430,15 +459,9 @@ class CreaseWatch {
   const Delaunay& triangulation_;
   const Creases& creases_;
   const std::vector<Delaunay::Vertex_handle>& handle_;
-  // Per seam point, where its kept edges (by their lower end) begin in edge_end_by_third_: those
-  // whose kept triangle has it as third corner.
-  std::vector<int> first_with_third_, edge_end_by_third_;
+  Storage& s_;
   bool always_everywhere_;
-  bool everywhere_ = true;                        // nothing looked at yet, or always_everywhere_
-  std::vector<VertexPair> creased_pairs_;         // the creased edges the last look found
-  std::vector<Delaunay::Vertex_handle> changed_;  // the points whose faces changed since
-  std::vector<VertexPair> candidates_;            // scratch of creased()
-  std::vector<Delaunay::Edge> creased_;           // what creased() returns
+  bool everywhere_ = true;  // nothing looked at yet, or always_everywhere_
 };
 
 // Flips the seam's creases out where a flip makes the surface smoother (after Dyn, Levin and
@@ -703,6 +726,14 @@ struct SeamLayout {
   }
 };
 
+// Scratch of the steps against creases: flip_out_creases, relax_creases, drop_crease_points and
+// drop_creased_faces.
+struct CreaseStepScratch {
+  std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> flip_candidates;
+  std::vector<Delaunay::Vertex_handle> corners, moved, dropped, around;
+  std::vector<Delaunay::Face_handle> faces;
+};
+
 // Scratch of fair_seam.
 struct FairingScratch {
   std::vector<std::array<int, 3>> faces;
@@ -800,12 +831,13 @@ template <typename Output, typename GridUnfolded>
 void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& normals, const std::vector<std::uint8_t>& fixed,
                    GridUnfolded&& grid_unfolded, const SeamLayout& layout, float max_edge2, float most, int rounds,
                    std::vector<Eigen::Vector3f>& positions, std::vector<Eigen::Vector2f>& flat, Output&& output, const Creases& creases,
-                   CreaseWatch& watch) {
+                   CreaseWatch& watch, CreaseStepScratch& s) {
   if (triangulation.dimension() != 2 || rounds == 0) return;
   auto is_seam_face = [](Delaunay::Face_handle f) {
     return f->vertex(0)->info().index >= 0 && f->vertex(1)->info().index >= 0 && f->vertex(2)->info().index >= 0;
   };
-  std::vector<Delaunay::Vertex_handle> corners;
+  std::vector<Delaunay::Vertex_handle>& corners = s.corners;
+  corners.clear();
   // Queues the four corners of the quadrilateral of edge (f, i): f's, then the one across the edge
   // (beyond a kept edge it is not a seam vertex, or not this seam's to move).
   auto queue_quadrilateral = [&](Delaunay::Face_handle f, int i) {
@@ -830,7 +862,7 @@ void relax_creases(Delaunay& triangulation, const std::vector<Eigen::Vector3f>& 
   auto area2 = [&](Delaunay::Face_handle f) {
     return signed_area2(flat[f->vertex(0)->info().index], flat[f->vertex(1)->info().index], flat[f->vertex(2)->info().index]);
   };
-  std::vector<Delaunay::Vertex_handle> moved;
+  std::vector<Delaunay::Vertex_handle>& moved = s.moved;
   for (int round = 0; round < rounds && !corners.empty(); ++round) {
     // In the seam's order of points (the moves are Gauss–Seidel, so the result depends on the
     // order, and the handles' addresses differ from run to run).
@@ -912,14 +944,15 @@ constexpr int kCreaseDropRounds = 2;
 template <typename Output>
 void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>& fixed, const std::vector<Eigen::Vector3f>& positions,
                         const std::vector<Eigen::Vector2f>& flat, float max_edge2, Output&& output, const Creases& creases, int rounds,
-                        CreaseWatch& watch, std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>>& candidates) {
+                        CreaseWatch& watch, CreaseStepScratch& s) {
   if (triangulation.dimension() != 2) return;
   auto may_go = [&](Delaunay::Vertex_handle v) {
     const int i = v->info().index;
     return !triangulation.is_infinite(v) && i >= 0 && (fixed.empty() || !fixed[i]) && !triangulation.are_there_incident_constraints(v);
   };
-  std::vector<Delaunay::Vertex_handle> dropped, around;
-  std::vector<Delaunay::Face_handle> faces;
+  std::vector<Delaunay::Vertex_handle>&dropped = s.dropped, &around = s.around;
+  std::vector<Delaunay::Face_handle>& faces = s.faces;
+  faces.clear();
   // The first of the corners of crease (f, i) that may go, into `dropped`.
   auto consider = [&](Delaunay::Face_handle face, int edge) {
     if (!(creases.cosine(face, edge) < kCreaseCosine)) return;
@@ -980,7 +1013,7 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
       } while (++f != first);
     }
     for (const Delaunay::Face_handle f : faces) set_face_info(f, positions, output);
-    flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, faces, watch, candidates);
+    flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, faces, watch, s.flip_candidates);
   }
 }
 
@@ -991,8 +1024,9 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
 // with all three corners on kept edges, so that none may go (samba-4cam frames 0–39 with the
 // true poses: 5–22 faces a frame set without the filter, of 6 000–8 000 seam faces; 2 in the 40
 // filtered). Returns how many.
-int drop_creased_faces(const Creases& creases, CreaseWatch& watch) {
-  std::vector<Delaunay::Face_handle> creased;
+int drop_creased_faces(const Creases& creases, CreaseWatch& watch, CreaseStepScratch& s) {
+  std::vector<Delaunay::Face_handle>& creased = s.faces;
+  creased.clear();
   for (const auto& [f, i] : watch.creased()) {
     if (!(creases.cosine(f, i) < kCreaseCosine)) continue;
     for (const Delaunay::Face_handle face : {f, f->neighbor(i)}) {
@@ -1060,9 +1094,9 @@ bool covered_by_triangle(const MeshView& view, const ViewPoint& p, float toleran
   return std::abs(mean_depth - p.in_camera.z()) < tolerance;
 }
 
-TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
-                    SeamScratch& scratch_a, SeamScratch& scratch_b) {
-  TakenSeam taken;
+void take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
+               SeamScratch& scratch_a, SeamScratch& scratch_b, TakenSeam& taken) {
+  taken.clear();
   Seam& seam = taken.seam;
   // Both seams are found against the meshes as FRBR left them, then taken out together.
   select_seeds(a, mask_a, scratch_a);
@@ -1082,13 +1116,39 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
   add_kept_edges(b, scratch_b, a_end, static_cast<int>(seam.vertices.size()), seam, taken.constraints, taken.kept_sides, taken.kept_triangles);
   clear_pixel_marks(a, scratch_a);
   clear_pixel_marks(b, scratch_b);
-  taken.taken_a = scratch_a.taken;
-  taken.taken_b = scratch_b.taken;
-  return taken;
+  taken.taken_a.assign(scratch_a.taken.begin(), scratch_a.taken.end());
+  taken.taken_b.assign(scratch_b.taken.begin(), scratch_b.taken.end());
 }
 
+// stitch_seam's arrays, kept between frames.
+struct StitchScratch::Buffers {
+  std::vector<Eigen::Vector3f> normals, rays;
+  std::vector<int> own_points, own_pixels, near_index, near_pixels;
+  std::vector<SurfaceFit> fits;
+  std::vector<float> depths;
+  std::vector<ViewPoint> projections;
+  std::vector<SeamSurface::NearPixel> near;
+  std::vector<Eigen::Vector2f> flat;
+  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>> points;
+  std::vector<Delaunay::Vertex_handle> handle;
+  std::vector<std::array<int, 3>> kept_triangles;
+  std::vector<std::uint8_t> kept_triangle_corner;
+  ConstraintScratch constraints;
+  FairingScratch fairing;
+  KeptEdges::Storage kept_edges;
+  CreaseWatch::Storage crease_watch;
+  CreaseStepScratch crease_steps;
+};
+
+StitchScratch::StitchScratch() : buffers_(std::make_unique<Buffers>()) {}
+StitchScratch::~StitchScratch() = default;
+StitchScratch::StitchScratch(StitchScratch&&) noexcept = default;
+StitchScratch& StitchScratch::operator=(StitchScratch&&) noexcept = default;
+
 void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken) {
+                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken,
+                 StitchScratch& scratch) {
+  StitchScratch::Buffers& buffers = scratch.buffers();
   Seam& seam = taken.seam;
   const std::vector<std::pair<int, int>>& constraints = taken.constraints;
   if (seam.vertices.size() < 3) return;
@@ -1102,17 +1162,22 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   const size_t count = seam.vertices.size();
   std::vector<Eigen::Vector3f>& positions = seam.positions;
   positions.resize(count);
-  std::vector<Eigen::Vector3f> normals(count), rays(count);
+  std::vector<Eigen::Vector3f>&normals = buffers.normals, &rays = buffers.rays;
+  normals.resize(count);  // every point's is set below
+  rays.resize(count);
   const SeamSurface surface_a{a, a.depth_from_world.inverse(Eigen::Isometry), centre_a, options.smoothing_radius};
   const SeamSurface surface_b{b, b.depth_from_world.inverse(Eigen::Isometry), centre_b, options.smoothing_radius};
   // Each camera's points read their own surface together (SeamSurface::read_points), then the
   // other camera's near their projections, also together (SeamSurface::near_pixel, then the fits
   // at the pixels it found).
-  std::vector<int> own_points, own_pixels, near_index, near_pixels;
-  std::vector<SurfaceFit> fits;
-  std::vector<float> depths;
-  std::vector<ViewPoint> projections(count);
-  std::vector<SeamSurface::NearPixel> near(count);
+  std::vector<int>&own_points = buffers.own_points, &own_pixels = buffers.own_pixels, &near_index = buffers.near_index,
+                   &near_pixels = buffers.near_pixels;
+  std::vector<SurfaceFit>& fits = buffers.fits;
+  std::vector<float>& depths = buffers.depths;
+  std::vector<ViewPoint>& projections = buffers.projections;
+  projections.assign(count, ViewPoint{});
+  std::vector<SeamSurface::NearPixel>& near = buffers.near;
+  near.assign(count, SeamSurface::NearPixel{});
   for (const SeamSurface* own : {&surface_a, &surface_b}) {
     const SeamSurface& other = own == &surface_a ? surface_b : surface_a;
     own_points.clear();
@@ -1182,9 +1247,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     if (layout.e1.cross(layout.e2).dot(layout.viewpoint - layout.mean) > 0) layout.e1 = -layout.e1;
     seam.used_pca = true;
   }
-  std::vector<Eigen::Vector2f> flat(seam.vertices.size());
-  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>> points;
-  points.reserve(seam.vertices.size());
+  std::vector<Eigen::Vector2f>& flat = buffers.flat;
+  flat.resize(seam.vertices.size());  // every point's is set here
+  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>>& points = buffers.points;
+  points.clear();
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     flat[i] = layout(positions[i]);
     points.emplace_back(Kernel::Point_2(flat[i].x(), flat[i].y()), SeamVertexInfo{static_cast<int>(i)});
@@ -1203,7 +1269,8 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // comes from the order of insertion, and with it the seams' last bits.
   constexpr size_t kSkeletonStrides[] = {16, 4};
   PlainDelaunay points_only;
-  std::vector<Delaunay::Vertex_handle> handle(seam.vertices.size());
+  std::vector<Delaunay::Vertex_handle>& handle = buffers.handle;
+  handle.assign(seam.vertices.size(), Delaunay::Vertex_handle());
   Delaunay::Face_handle hint;
   auto insert_point = [&](const std::pair<Kernel::Point_2, SeamVertexInfo>& point) {
     if (handle[point.second.index] != Delaunay::Vertex_handle()) return;  // in the skeleton
@@ -1223,11 +1290,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // depth (the default; filtered depth laid out as measured is about as regular), about 90 % of
   // them are already edges of the triangulation and are only marked; the others are flipped into
   // place.
-  ConstraintScratch flips;
-  for (const auto& [i, j] : constraints) constrain(triangulation, handle[i], handle[j], flips);
+  for (const auto& [i, j] : constraints) constrain(triangulation, handle[i], handle[j], buffers.constraints);
   const float max_edge2 = options.max_edge * options.max_edge;
-  FairingScratch fairing;
-  fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat, fairing);
+  fair_seam(triangulation, normals, rays, taken.shared, layout, max_edge2, options.ownership_distance, options.fairing_iterations, positions, flat,
+            buffers.fairing);
   // The kept triangles whose three corners are all seam vertices (take_seam lists them), each as
   // its sorted corners: the triangulation has a face on exactly those corners (its three edges
   // are constraints), which would double the kept triangle. covered_by_triangle below misses it
@@ -1236,8 +1302,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // corners are taken as the triangulation numbers them (a point at the 2-D position of an
   // earlier one has that one's index), and flagged, so that most faces are cleared by three
   // loads (the output test runs for every face the flips, the relaxation and the dropping touch).
-  std::vector<std::array<int, 3>> kept_triangles;
-  std::vector<std::uint8_t> kept_triangle_corner(seam.vertices.size(), 0);
+  std::vector<std::array<int, 3>>& kept_triangles = buffers.kept_triangles;
+  kept_triangles.clear();
+  std::vector<std::uint8_t>& kept_triangle_corner = buffers.kept_triangle_corner;
+  kept_triangle_corner.assign(seam.vertices.size(), 0);
   for (const std::array<int, 3>& triangle : taken.kept_triangles) {
     std::array<int, 3> corners;
     for (int k = 0; k < 3; ++k) {
@@ -1254,7 +1322,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     std::sort(corners.begin(), corners.end());
     return std::binary_search(kept_triangles.begin(), kept_triangles.end(), corners);
   };
-  const KeptEdges kept_edges(a, b, taken);
+  const KeptEdges kept_edges(a, b, taken, buffers.kept_edges);
   // Is the seam triangle of these vertices (counter-clockwise in the layout) output? Not with an
   // edge longer than max_edge, nor over a kept triangle of either mesh (the seam would double the
   // surface there): beside a kept edge on the kept triangle's side, or elsewhere over it.
@@ -1269,9 +1337,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   };
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) set_face_info(face, positions, output);
   const Creases creases(triangulation, positions, kept_edges);
-  CreaseWatch crease_watch(triangulation, creases, kept_edges, positions.size(), handle, !options.crease_watch);
-  std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> crease_candidates;
-  flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, {}, crease_watch, crease_candidates);
+  CreaseWatch crease_watch(triangulation, creases, kept_edges, positions.size(), handle, !options.crease_watch, buffers.crease_watch);
+  CreaseStepScratch& crease_steps = buffers.crease_steps;
+  crease_steps.faces.clear();  // flip_out_creases looks at every crease the watch knows
+  flip_out_creases(triangulation, positions, flat, max_edge2, output, creases, crease_steps.faces, crease_watch, crease_steps.flip_candidates);
   if (options.fairing_iterations > 0) {
     // Does point i at p leave the pixel grid around it unfolded in its camera?
     auto grid_unfolded = [&](int i, const Eigen::Vector3f& p) {
@@ -1279,10 +1348,10 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
       return keeps_pixel_grid_unfolded(in_a ? a : b, in_a ? pixels.a : pixels.b, pixels.own, seam.vertices[i].pixel, p, positions.data());
     };
     relax_creases(triangulation, normals, taken.shared, grid_unfolded, layout, max_edge2, options.ownership_distance, kCreaseRelaxRounds,
-                  positions, flat, output, creases, crease_watch);
+                  positions, flat, output, creases, crease_watch, crease_steps);
   }
-  drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_watch, crease_candidates);
-  seam.creased_faces_dropped = drop_creased_faces(creases, crease_watch);
+  drop_crease_points(triangulation, taken.shared, positions, flat, max_edge2, output, creases, kCreaseDropRounds, crease_watch, crease_steps);
+  seam.creased_faces_dropped = drop_creased_faces(creases, crease_watch, crease_steps);
   for (auto face = triangulation.finite_faces_begin(); face != triangulation.finite_faces_end(); ++face) {
     if (!face->info().output) continue;
     int index[3];

@@ -33,6 +33,7 @@
 #include <array>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #include "zipfusion/fusion/redundancy.h"
@@ -187,14 +188,45 @@ struct TakenSeam {
   // its own place (the seams would move it towards different cameras' surfaces, and the output
   // has one position per pixel). Empty: none is.
   std::vector<std::uint8_t> shared;
+
+  //! Empties it, keeping its arrays' capacity.
+  void clear() {
+    seam.vertices.clear();
+    seam.positions.clear();
+    seam.triangles.clear();
+    seam.triangles_taken = 0;
+    seam.used_pca = false;
+    seam.creased_faces_dropped = 0;
+    constraints.clear();
+    kept_sides.clear();
+    kept_triangles.clear();
+    taken_a.clear();
+    taken_b.clear();
+    shared.clear();
+  }
+};
+
+//! Work space of stitch_seam, reused across frames: one for each seam stitched at the same time.
+class StitchScratch {
+ public:
+  StitchScratch();
+  ~StitchScratch();
+  StitchScratch(StitchScratch&&) noexcept;
+  StitchScratch& operator=(StitchScratch&&) noexcept;
+  struct Buffers;  // clipping.cc: arrays of types it keeps to itself (CGAL's handles among them)
+  Buffers& buffers() { return *buffers_; }
+
+ private:
+  std::unique_ptr<Buffers> buffers_;
 };
 
 //! The first phase: takes the triangles of `a` within d_c of `b` and of `b` within d_c of `a` out
 //! of both meshes and chooses the seam's vertices (labelled with the views' camera indices) and
 //! the kept edges it must contain. `mask_a` (`mask_b`): where b sees a (a sees b); seams start
-//! only inside. Seams of pairs that share a camera must take in a fixed order.
-TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
-                    SeamScratch& scratch_a, SeamScratch& scratch_b);
+//! only inside. Seams of pairs that share a camera must take in a fixed order. `taken` is
+//! emptied first (its arrays are kept between frames).
+void take_seam(const MeshView& a, const MeshView& b, const SeamOptions& options, const OverlapMask& mask_a, const OverlapMask& mask_b,
+               SeamScratch& scratch_a, SeamScratch& scratch_b, TakenSeam& taken);
 
 //! The second phase: the seam's triangles (Delaunay), into taken.seam. Reads the meshes only, so
 //! any number run at once; `kept_a`, `kept_b` say which triangles counted as kept when the seam
@@ -203,6 +235,7 @@ TakenSeam take_seam(const MeshView& a, const MeshView& b, const SeamOptions& opt
 //! and this seam's number there (a default SeamPixels knows none: every point is then held
 //! within kMostPixelShiftBesideOtherSeam of its pixel).
 void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshView& b, const Eigen::Vector3f& centre_b,
-                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken);
+                 const SeamOptions& options, const KeptAt& kept_a, const KeptAt& kept_b, const SeamPixels& pixels, TakenSeam& taken,
+                 StitchScratch& scratch);
 
 }  // namespace zipfusion

@@ -115,14 +115,16 @@ ZF_ROW_KERNEL void boundary_row(const std::uint8_t* row, const std::uint8_t* abo
 
 }  // namespace
 
-void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
+void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary, std::vector<std::uint8_t>& rows) {
   boundary.clear();
   const PixelBox box = mesh.box();
   // Triangles lie in the cells of the depth box but its last row and column (and none of the
   // image's last row or column).
   const int u0 = box.u0, u1 = std::min(box.u1, mesh.width - 1), v1 = std::min(box.v1, mesh.height - 1);
   if (u1 <= u0 || v1 <= box.v0) return;
-  std::vector<std::uint8_t> flags(u1 - u0), empty_row(u1 - u0 + 1, 0);
+  // A row's flags, then a row of no triangles (above the image's first).
+  rows.assign(2 * (u1 - u0) + 1, 0);
+  std::uint8_t *flags = rows.data(), *empty_row = rows.data() + (u1 - u0);
   const std::uint8_t* t = mesh.triangles.data();
   for (int v = box.v0; v < v1; ++v) {
     // Only the row's cells from its first triangle to its last (the subject, not the box).
@@ -130,11 +132,11 @@ void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundar
     const int count = span_end - span_first;
     if (count == 0) continue;
     const int first = v * mesh.width + u0 + span_first;
-    const std::uint8_t* above = v > 0 ? t + first - mesh.width : empty_row.data();
-    boundary_row(t + first, above, t + first + mesh.width, count, flags.data());
+    const std::uint8_t* above = v > 0 ? t + first - mesh.width : empty_row;
+    boundary_row(t + first, above, t + first + mesh.width, count, flags);
     flags[0] = is_boundary_triangle(t, first, mesh.width, kUpperTriangle) * kUpperTriangle +
                is_boundary_triangle(t, first, mesh.width, kLowerTriangle) * kLowerTriangle;
-    for_each_nonzero_byte(flags.data(), count, [&](int i, std::uint8_t bits) {
+    for_each_nonzero_byte(flags, count, [&](int i, std::uint8_t bits) {
       if (bits & kUpperTriangle) boundary.push_back(triangle_id(first + i, kUpperTriangle));
       if (bits & kLowerTriangle) boundary.push_back(triangle_id(first + i, kLowerTriangle));
     });

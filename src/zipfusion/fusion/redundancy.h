@@ -365,8 +365,12 @@ void for_each_triangle_id(const DepthMesh& mesh, F&& f) {
   });
 }
 
-//! The boundary triangles of `mesh` (ids), in id order.
-void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary);
+//! The boundary triangles of `mesh` (ids), in id order. `rows`: scratch, reused across calls.
+void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary, std::vector<std::uint8_t>& rows);
+inline void collect_boundary_triangles(const DepthMesh& mesh, std::vector<int>& boundary) {
+  std::vector<std::uint8_t> rows;
+  collect_boundary_triangles(mesh, boundary, rows);
+}
 
 //! Element function: false when camera `b` certainly does not see point p: it is outside b's
 //! image, or every pixel next to its projection has a depth (of another surface) more than

@@ -101,23 +101,36 @@ void ZipperOptions::validate() const {
   if (!(min_overlap_share >= 0 && min_overlap_share < 1)) throw InvalidInput("--min-overlap: must be in [0, 1)");
 }
 
-std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<std::pair<int, int>>& pairs) {
-  std::vector<std::vector<std::pair<int, int>>> rounds;
-  for (const auto& pair : pairs) {
-    bool placed = false;
-    for (auto& round : rounds) {
-      bool clash = false;
-      for (const auto& other : round) {
-        clash = clash || other.first == pair.first || other.first == pair.second || other.second == pair.first || other.second == pair.second;
+void schedule_pairs(const std::vector<std::pair<int, int>>& pairs, PairRounds& rounds) {
+  // Each pair into the first round that has neither of its cameras yet.
+  rounds.round_of_pair.assign(pairs.size(), 0);
+  int round_count = 0;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    auto round_has_a_camera_of_k = [&](int round) {
+      for (size_t other = 0; other < k; ++other) {
+        if (rounds.round_of_pair[other] != round) continue;
+        const auto [a, b] = pairs[k];
+        if (pairs[other].first == a || pairs[other].first == b || pairs[other].second == a || pairs[other].second == b) return true;
       }
-      if (!clash) {
-        round.push_back(pair);
-        placed = true;
-        break;
-      }
-    }
-    if (!placed) rounds.push_back({pair});
+      return false;
+    };
+    int round = 0;
+    while (round_has_a_camera_of_k(round)) ++round;
+    rounds.round_of_pair[k] = round;
+    round_count = std::max(round_count, round + 1);
   }
+  // Each round's pairs in their given order (a counting sort by round).
+  rounds.round_begin.assign(round_count + 1, 0);
+  for (const int round : rounds.round_of_pair) ++rounds.round_begin[round + 1];
+  for (int r = 0; r < round_count; ++r) rounds.round_begin[r + 1] += rounds.round_begin[r];
+  rounds.pairs.resize(pairs.size());
+  rounds.next.assign(rounds.round_begin.begin(), rounds.round_begin.end() - 1);
+  for (size_t k = 0; k < pairs.size(); ++k) rounds.pairs[rounds.next[rounds.round_of_pair[k]]++] = pairs[k];
+}
+
+PairRounds schedule_pairs(const std::vector<std::pair<int, int>>& pairs) {
+  PairRounds rounds;
+  schedule_pairs(pairs, rounds);
   return rounds;
 }
 
@@ -128,13 +141,16 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   const int camera_count = static_cast<int>(cameras.size());
   const int levels = options.coarse_levels;
   scratch.cameras.resize(camera_count);
-  std::vector<int> active;
+  std::vector<int>& active = scratch.active;
+  active.clear();
   for (int c = 0; c < camera_count; ++c) {
     if (cameras[c].mesh != nullptr) active.push_back(c);
   }
 
   // Views of every camera at every level: level 0 is the full-resolution mesh itself.
-  std::vector<std::vector<MeshView>> views(camera_count, std::vector<MeshView>(levels + 1));
+  std::vector<std::vector<MeshView>>& views = scratch.views;
+  views.resize(camera_count);
+  for (std::vector<MeshView>& camera_views : views) camera_views.assign(levels + 1, MeshView{});
   Clock::time_point t = Clock::now();
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
@@ -171,11 +187,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
 
   // Overlapping pairs, judged on the coarsest level.
   t = Clock::now();
-  std::vector<std::pair<int, int>> candidates;
+  std::vector<std::pair<int, int>>& candidates = scratch.candidates;
+  candidates.clear();
   for (size_t i = 0; i < active.size(); ++i) {
     for (size_t j = i + 1; j < active.size(); ++j) candidates.emplace_back(active[i], active[j]);
   }
-  std::vector<char> overlaps(candidates.size(), 0);
+  std::vector<char>& overlaps = scratch.overlaps;
+  overlaps.assign(candidates.size(), 0);
   const float d_r = static_cast<float>(options.redundancy_distance_m);
   parallel_for(0, static_cast<int>(candidates.size()), [&](int i) {
     const auto [a, b] = candidates[i];
@@ -183,6 +201,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     overlaps[i] = overlap_reaches(views[a][levels], views[b][levels], d_r, options.min_overlap_share) ||
                   overlap_reaches(views[b][levels], views[a][levels], d_r, options.min_overlap_share);
   }, options.num_threads);
+  result.pairs.reserve(candidates.size());
   for (size_t i = 0; i < candidates.size(); ++i) {
     if (overlaps[i]) result.pairs.push_back(candidates[i]);
   }
@@ -196,10 +215,11 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   auto pair_index_of = [&](const std::pair<int, int>& pair) {
     return static_cast<size_t>(std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin());
   };
-  const auto rounds = schedule_pairs(result.pairs);
+  PairRounds& rounds = scratch.rounds;
+  schedule_pairs(result.pairs, rounds);
   // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
   // 2n − 3 rounds for n cameras).
-  if (rounds.size() > 254) throw InvalidInput("zipper: more than 254 rounds of camera pairs (too many cameras)");
+  if (rounds.count() > 254) throw InvalidInput("zipper: more than 254 rounds of camera pairs (too many cameras)");
   // Stitching numbers the seams from 1 in 16 bits (SeamPixelMap).
   if (result.pairs.size() >= SeamPixelMap::kManySeams) throw InvalidInput("zipper: more than 65 534 overlapping camera pairs");
   result.stats.overlap_ms = ms_since(t);
@@ -208,8 +228,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   t = Clock::now();
   // Full-resolution triangles removed: propagated into level 0 and removed there (counted as they
   // go; counting the bit matrices before and after took a quarter of a millisecond on one thread).
-  std::vector<int> propagated_to_full(camera_count, 0);
-  std::vector<int> removed_at_full(result.pairs.size(), 0);
+  std::vector<int>&propagated_to_full = scratch.propagated_to_full, &removed_at_full = scratch.removed_at_full;
+  propagated_to_full.assign(camera_count, 0);
+  removed_at_full.assign(result.pairs.size(), 0);
   // Each finer level starts its frontier from its boundary; the coarsest level's sweeps (whole
   // first sweeps) only add to it, onto the previous frame's, which then grew it again.
   for (int c : active) scratch.cameras[c].frbr.frontier.clear();
@@ -219,11 +240,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
         const int c = active[i];
         const int cleared = propagate_removals(scratch.cameras[c].bits_before[level], *views[c][level + 1].mesh, *views[c][level].mesh);
         if (level == 0) propagated_to_full[c] = cleared;
-        collect_boundary_triangles(*views[c][level].mesh, scratch.cameras[c].frbr.frontier);
+        collect_boundary_triangles(*views[c][level].mesh, scratch.cameras[c].frbr.frontier, scratch.cameras[c].boundary_rows);
       }, options.num_threads);
     }
     const float distance = d_r * static_cast<float>(std::pow(options.coarse_shrink, level));
-    for (const auto& round : rounds) {
+    for (size_t r = 0; r < rounds.count(); ++r) {
+      const std::span<const std::pair<int, int>> round = rounds.round(r);
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const auto [a, b] = round[i];
         const auto& masks = scratch.masks[pair_index_of(round[i])];
@@ -241,7 +263,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   t = Clock::now();
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
-    collect_boundary_triangles(*cameras[c].mesh, scratch.cameras[c].seam.boundary);
+    collect_boundary_triangles(*cameras[c].mesh, scratch.cameras[c].seam.boundary, scratch.cameras[c].boundary_rows);
   }, options.num_threads);
   const SeamOptions seam_options{.clipping_distance = static_cast<float>(options.clipping_distance_m),
                                  .max_edge = static_cast<float>(options.max_seam_edge_m),
@@ -255,8 +277,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // their number of points: rounds of unequal pairs (or a round of one, with five pairs) left a
   // thread idle, and the Delaunay phase is about 70 % of clipping. A seam triangulated after
   // later rounds took more counts those later-taken triangles as kept, as they were for it.
-  std::vector<TakenSeam> taken(result.pairs.size());
-  std::vector<int> round_of_pair(result.pairs.size(), 0);
+  std::vector<TakenSeam>& taken = scratch.taken;
+  taken.resize(result.pairs.size());
+  for (TakenSeam& seam : taken) seam.clear();  // the marks' clearing below reads them, even if taking fails half way
+  if (scratch.stitch.size() < taken.size()) scratch.stitch.resize(taken.size());
   // The seams mark the scratch's cameras (the round that took each triangle, the seam of each
   // pixel); the next call reads those marks as its own seams', so they are cleared after the
   // stitching, and also when an exception leaves it half done.
@@ -273,14 +297,13 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   };
   OnScopeExit clear_seam_marks_on_error(clear_seam_marks);
   for (int c : active) scratch.cameras[c].taken_round.resize(cameras[c].mesh->triangles.size() * 2, 0);
-  for (size_t r = 0; r < rounds.size(); ++r) {
-    const auto& round = rounds[r];
+  for (size_t r = 0; r < rounds.count(); ++r) {
+    const std::span<const std::pair<int, int>> round = rounds.round(r);
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
       const auto [a, b] = round[i];
       const size_t pair_index = pair_index_of(round[i]);
-      taken[pair_index] = take_seam(views[a][0], views[b][0], seam_options, scratch.masks[pair_index].first, scratch.masks[pair_index].second,
-                                    scratch.cameras[a].seam, scratch.cameras[b].seam);
-      round_of_pair[pair_index] = static_cast<int>(r) + 1;
+      take_seam(views[a][0], views[b][0], seam_options, scratch.masks[pair_index].first, scratch.masks[pair_index].second,
+                scratch.cameras[a].seam, scratch.cameras[b].seam, taken[pair_index]);
       for (int id : taken[pair_index].taken_a) scratch.cameras[a].taken_round[id] = static_cast<std::uint8_t>(r + 1);
       for (int id : taken[pair_index].taken_b) scratch.cameras[b].taken_round[id] = static_cast<std::uint8_t>(r + 1);
     }, options.num_threads);
@@ -316,7 +339,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // triangles share pixel vertices; each camera's part is written at offsets from a prefix sum
   // of the cameras' counts, taken first.
   TriangleMesh& mesh = result.mesh;
-  std::vector<int> vertex_count(camera_count, 0), triangle_count(camera_count, 0);
+  std::vector<int>&vertex_count = scratch.vertex_count, &triangle_count = scratch.triangle_count;
+  vertex_count.assign(camera_count, 0);
+  triangle_count.assign(camera_count, 0);
   // Each camera's used pixels (by kept triangles or seams) and triangles, counted.
   parallel_for(0, static_cast<int>(active.size()), [&](int i) {
     const int c = active[i];
@@ -342,7 +367,9 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     vertex_count[c] = vertices;
     triangle_count[c] = triangles;
   }, options.num_threads);
-  std::vector<int> vertex_offset(camera_count + 1, 0), triangle_offset(camera_count + 1, 0);
+  std::vector<int>&vertex_offset = scratch.vertex_offset, &triangle_offset = scratch.triangle_offset;
+  vertex_offset.assign(camera_count + 1, 0);
+  triangle_offset.assign(camera_count + 1, 0);
   for (int c = 0; c < camera_count; ++c) {
     vertex_offset[c + 1] = vertex_offset[c] + vertex_count[c];
     triangle_offset[c + 1] = triangle_offset[c] + triangle_count[c];
@@ -389,22 +416,29 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       });
     }
   };
-  std::vector<Clock::time_point> stitched_at(taken.size(), taken_at);
+  std::vector<Clock::time_point>& stitched_at = scratch.stitched_at;
+  stitched_at.assign(taken.size(), taken_at);
   auto stitch = [&](int i) {
     const auto [a, b] = result.pairs[i];
     auto pixel_map = [&](int c) { return SeamPixelMap{scratch.cameras[c].seam_at_pixel.data(), scratch.cameras[c].seam_vertex_at_pixel.data()}; };
     stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                 cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,
-                KeptAt{scratch.cameras[a].taken_round.data(), round_of_pair[i]}, KeptAt{scratch.cameras[b].taken_round.data(), round_of_pair[i]},
-                SeamPixels{pixel_map(a), pixel_map(b), static_cast<std::uint16_t>(i + 1)}, taken[i]);
+                KeptAt{scratch.cameras[a].taken_round.data(), rounds.round_of_pair[i] + 1},
+                KeptAt{scratch.cameras[b].taken_round.data(), rounds.round_of_pair[i] + 1},
+                SeamPixels{pixel_map(a), pixel_map(b), static_cast<std::uint16_t>(i + 1)}, taken[i], scratch.stitch[i]);
     stitched_at[i] = Clock::now();
   };
   // One list the threads take tasks from in turn: the seams, longest first, then each camera's
   // writing. The seams are a few long tasks of unequal length (on samba-4cam a thread was left
   // without one for 6–7 % of the stitching), and the writing fills those gaps.
-  std::vector<int> by_size(taken.size());
+  std::vector<int>& by_size = scratch.by_size;
+  by_size.resize(taken.size());
   for (size_t i = 0; i < taken.size(); ++i) by_size[i] = static_cast<int>(i);
-  std::stable_sort(by_size.begin(), by_size.end(), [&](int i, int j) { return taken[i].seam.vertices.size() > taken[j].seam.vertices.size(); });
+  // Equal sizes in pair order (std::stable_sort would take a buffer from the heap).
+  std::sort(by_size.begin(), by_size.end(), [&](int i, int j) {
+    const size_t size_i = taken[i].seam.vertices.size(), size_j = taken[j].seam.vertices.size();
+    return size_i != size_j ? size_i > size_j : i < j;
+  });
   const int seam_count = static_cast<int>(taken.size());
   run_tasks_in_turn(seam_count + static_cast<int>(active.size()), options.num_threads, [&](int k) {
     if (k < seam_count) {
@@ -413,14 +447,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       write_camera(active[k - seam_count]);
     }
   });
-  std::vector<Seam> seams(taken.size());
   clear_seam_marks();
   clear_seam_marks_on_error.dismiss();
-  for (size_t i = 0; i < taken.size(); ++i) {
-    seams[i] = std::move(taken[i].seam);
-    result.stats.seam_taken += seams[i].triangles_taken;
-    result.stats.seam_pca += seams[i].used_pca;
-    result.stats.seam_crease_gaps += seams[i].creased_faces_dropped;
+  for (const TakenSeam& seam : taken) {
+    result.stats.seam_taken += seam.seam.triangles_taken;
+    result.stats.seam_pca += seam.seam.used_pca;
+    result.stats.seam_crease_gaps += seam.seam.creased_faces_dropped;
   }
   // Clipping ends with the last seam; the writing still running then, and what follows, is
   // assembly's (and the counting before, a few percent of it, clipping's).
@@ -453,7 +485,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     seam_vertices.clear();
     slot_vertex.clear();
     local_slot.clear();
-    for (const Seam& seam : seams) {
+    for (const TakenSeam& taken_seam : taken) {
+      const Seam& seam = taken_seam.seam;
       // The seam's vertices where it put them (a pixel in two seams gets the same position from both).
       for (size_t k = 0; k < seam.positions.size(); ++k) mesh.positions[vertex(seam.vertices[k])] = seam.positions[k];
       for (const PixelVertex& v : seam.vertices) {
@@ -496,7 +529,8 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       return std::any_of(edges.begin(), edges.end(), [b, c](const ZipperScratch::DirectedEdge& e) { return e.to == b && e.third == c; });
     };
     const int* seam_local_slot = local_slot.data();
-    for (const Seam& seam : seams) {
+    for (const TakenSeam& taken_seam : taken) {
+      const Seam& seam = taken_seam.seam;
       for (const Eigen::Vector3i& local : seam.triangles) {
         const int a = seam_local_slot[local[0]], b = seam_local_slot[local[1]], c = seam_local_slot[local[2]];
         if (has_edge(a, b) || has_edge(b, c) || has_edge(c, a) || has_face(a, c, b)) {

@@ -8,6 +8,8 @@
 //! Pairs are scheduled in rounds in which no camera appears twice; the pairs of a round run in
 //! parallel. Thread safety: one ZipperScratch per concurrent call.
 
+#include <chrono>
+#include <span>
 #include <vector>
 
 #include "zipfusion/core/mesh.h"
@@ -83,6 +85,20 @@ struct ZipperResult {
   std::vector<std::pair<int, int>> pairs;  // the overlapping pairs found
 };
 
+//! Camera pairs grouped into rounds in which no camera appears twice, as CSR: round r is
+//! pairs[round_begin[r]] up to pairs[round_begin[r + 1]].
+struct PairRounds {
+  std::vector<std::pair<int, int>> pairs;  // by round, each round's in their given order
+  std::vector<int> round_begin;            // one more than there are rounds
+  std::vector<int> round_of_pair;          // per pair as given, its round
+  std::vector<int> next;                   // scratch of schedule_pairs
+
+  size_t count() const { return round_begin.empty() ? 0 : round_begin.size() - 1; }
+  std::span<const std::pair<int, int>> round(size_t r) const {
+    return {pairs.data() + round_begin[r], static_cast<size_t>(round_begin[r + 1] - round_begin[r])};
+  }
+};
+
 //! Scratch space reused across frames.
 struct ZipperScratch {
   struct Camera {
@@ -96,11 +112,27 @@ struct ZipperScratch {
     std::vector<int> seam_vertex_at_pixel;     // clipping: per pixel of one seam, its index among the seam's vertices
     std::vector<std::uint8_t> used;       // assembly: per pixel, whether a kept or seam triangle uses it
     std::vector<int> vertex_of_pixel;     // assembly: per used pixel, its index among the camera's vertices
+    std::vector<std::uint8_t> boundary_rows;  // collect_boundary_triangles' scratch
   };
   std::vector<Camera> cameras;
   // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
   // coarsest level, and the reverse.
   std::vector<std::pair<OverlapMask, OverlapMask>> masks;
+  std::vector<TakenSeam> taken;       // clipping: per pair, its seam between taking and stitching
+  std::vector<StitchScratch> stitch;  // clipping: per pair, stitch_seam's work space
+  // zipper_meshes' own lists, kept for their capacity: the cameras with a mesh, each camera's view
+  // at each level, the candidate pairs and whether each overlaps, the pairs' rounds, counts of
+  // removals, per camera its output's vertex and triangle counts and offsets, per seam when it
+  // was stitched, and the seams by size.
+  std::vector<int> active;
+  std::vector<std::vector<MeshView>> views;
+  std::vector<std::pair<int, int>> candidates;
+  std::vector<char> overlaps;
+  PairRounds rounds;
+  std::vector<int> propagated_to_full, removed_at_full;
+  std::vector<int> vertex_count, triangle_count, vertex_offset, triangle_offset;
+  std::vector<std::chrono::steady_clock::time_point> stitched_at;
+  std::vector<int> by_size;
   std::vector<int> seam_slot;                // assembly: per output vertex, its slot (index among seam vertices) or -1
   std::vector<PixelVertex> seam_vertices;    // assembly: per slot, its pixel
   std::vector<int> slot_vertex;              // assembly: per slot, its output vertex
@@ -116,7 +148,9 @@ struct ZipperScratch {
 ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const ZipperOptions& options, ZipperScratch& scratch,
                            TriangleMesh reuse = {});
 
-//! Pairs grouped into rounds in which no camera appears twice (greedy edge colouring).
-std::vector<std::vector<std::pair<int, int>>> schedule_pairs(const std::vector<std::pair<int, int>>& pairs);
+//! Greedy edge colouring: each pair goes into the first round that has neither of its cameras.
+//! The first form reuses `rounds`' arrays.
+void schedule_pairs(const std::vector<std::pair<int, int>>& pairs, PairRounds& rounds);
+PairRounds schedule_pairs(const std::vector<std::pair<int, int>>& pairs);
 
 }  // namespace zipfusion
