@@ -84,21 +84,33 @@ int segments_not_edges(const SeamTriangulation& triangulation, const std::vector
   return count;
 }
 
+// The same points triangulated twice, the same segments then constrained in each: by CGAL's
+// insert_constraint and by `constrain`.
+struct BothWays {
+  explicit BothWays(const std::vector<Point>& points) {
+    triangulate(points, by_cgal, cgal_handle);
+    triangulate(points, by_flips, flips_handle);
+  }
+  void constrain_each(const std::vector<std::pair<int, int>>& segments) {
+    for (const auto& [i, j] : segments) {
+      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
+      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
+    }
+  }
+  SeamTriangulation by_cgal, by_flips;
+  std::vector<Vertex> cgal_handle, flips_handle;
+  ConstraintScratch scratch;
+};
+
 TEST(Constrain, GivesCgalsConstrainedDelaunayTriangulation) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     std::mt19937 random(seed);
     const std::vector<Point> points = jittered_grid(random);
     const std::vector<std::pair<int, int>> segments = random_segments(points, 40, false, random);
-    SeamTriangulation by_cgal, by_flips;
-    std::vector<Vertex> cgal_handle, flips_handle;
-    triangulate(points, by_cgal, cgal_handle);
-    triangulate(points, by_flips, flips_handle);
+    BothWays both(points);
+    auto& [by_cgal, by_flips, cgal_handle, flips_handle, scratch] = both;
     ASSERT_GE(segments_not_edges(by_flips, flips_handle, segments), 30) << "seed " << seed;
-    ConstraintScratch scratch;
-    for (const auto& [i, j] : segments) {
-      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
-      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
-    }
+    both.constrain_each(segments);
     EXPECT_EQ(scratch.left_to_cgal, 0) << "seed " << seed;
     EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
     EXPECT_EQ(by_flips.number_of_vertices(), points.size()) << "seed " << seed;
@@ -114,15 +126,9 @@ TEST(Constrain, SplitsCrossingConstraintsAsCgalDoes) {
     std::mt19937 random(seed);
     const std::vector<Point> points = jittered_grid(random);
     const std::vector<std::pair<int, int>> segments = random_segments(points, 30, true, random);
-    SeamTriangulation by_cgal, by_flips;
-    std::vector<Vertex> cgal_handle, flips_handle;
-    triangulate(points, by_cgal, cgal_handle);
-    triangulate(points, by_flips, flips_handle);
-    ConstraintScratch scratch;
-    for (const auto& [i, j] : segments) {
-      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
-      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
-    }
+    BothWays both(points);
+    auto& [by_cgal, by_flips, cgal_handle, flips_handle, scratch] = both;
+    both.constrain_each(segments);
     ASSERT_GE(by_cgal.number_of_vertices(), points.size() + 10) << "seed " << seed << ": too few crossings to test";
     EXPECT_EQ(scratch.left_to_cgal, 0) << "seed " << seed;
     EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
@@ -137,15 +143,9 @@ TEST(Constrain, SplitsCrossingConstraintsAsCgalDoes) {
 TEST(Constrain, SnapsACrossingBesideAnEndAsCgalDoes) {
   const double just_above_1 = std::nextafter(std::nextafter(1.0, 2.0), 2.0);
   const std::vector<Point> points = {{-1, -1}, {3, -1}, {3, 4}, {-1, 4}, {1, 1}, {1, 3}, {0, just_above_1}, {2, just_above_1}};
-  SeamTriangulation by_cgal, by_flips;
-  std::vector<Vertex> cgal_handle, flips_handle;
-  triangulate(points, by_cgal, cgal_handle);
-  triangulate(points, by_flips, flips_handle);
-  ConstraintScratch scratch;
-  for (const auto& [i, j] : {std::pair{4, 5}, std::pair{6, 7}}) {
-    by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
-    constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
-  }
+  BothWays both(points);
+  auto& [by_cgal, by_flips, cgal_handle, flips_handle, scratch] = both;
+  both.constrain_each({{4, 5}, {6, 7}});  // the vertical edge first, then the segment across it
   EXPECT_EQ(by_cgal.number_of_vertices(), points.size());
   EXPECT_EQ(by_flips.number_of_vertices(), points.size());
   EXPECT_EQ(scratch.left_to_cgal, 0);
@@ -165,15 +165,9 @@ TEST(Constrain, MatchesCgalOnAnIntegerGrid) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     std::mt19937 random(seed);
     const std::vector<std::pair<int, int>> segments = random_segments(points, 25, false, random);
-    SeamTriangulation by_cgal, by_flips;
-    std::vector<Vertex> cgal_handle, flips_handle;
-    triangulate(points, by_cgal, cgal_handle);
-    triangulate(points, by_flips, flips_handle);
-    ConstraintScratch scratch;
-    for (const auto& [i, j] : segments) {
-      by_cgal.insert_constraint(cgal_handle[i], cgal_handle[j]);
-      constrain(by_flips, flips_handle[i], flips_handle[j], scratch);
-    }
+    BothWays both(points);
+    auto& [by_cgal, by_flips, cgal_handle, flips_handle, scratch] = both;
+    both.constrain_each(segments);
     EXPECT_GT(scratch.left_to_cgal, 0) << "seed " << seed << ": no segment through a grid point";
     EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
     EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
