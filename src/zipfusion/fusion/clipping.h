@@ -31,6 +31,7 @@
 //! edge (docs/design.md).
 
 #include <array>
+#include <cassert>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -214,7 +215,10 @@ class StitchScratch {
   StitchScratch(StitchScratch&&) noexcept;
   StitchScratch& operator=(StitchScratch&&) noexcept;
   struct Buffers;  // clipping.cc: arrays of types it keeps to itself (CGAL's handles among them)
-  Buffers& buffers() { return *buffers_; }
+  Buffers& buffers() {
+    assert(buffers_ != nullptr);  // not moved from
+    return *buffers_;
+  }
 
  private:
   std::unique_ptr<Buffers> buffers_;

@@ -223,6 +223,10 @@ Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex
 }  // namespace
 
 void constrain(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& scratch) {
+  // Empty as every call leaves them, unless one was cut short by an exception: their handles
+  // would then be another triangulation's.
+  scratch.crossing.clear();
+  scratch.created.clear();
   constrain_at_depth(triangulation, from, to, scratch, 0);
 }
 

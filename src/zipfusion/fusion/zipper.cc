@@ -102,20 +102,26 @@ void ZipperOptions::validate() const {
 }
 
 void schedule_pairs(const std::vector<std::pair<int, int>>& pairs, PairRounds& rounds) {
-  // Each pair into the first round that has neither of its cameras yet.
+  // Each pair into the first round that has neither of its cameras yet, found from the rounds
+  // each camera is in. A camera of c pairs is in c rounds, so a pair's first free round comes
+  // before the sum of its two cameras' pairs: fewer than twice the cameras.
+  int cameras = 0;
+  for (const auto& [a, b] : pairs) {
+    assert(a >= 0 && b >= 0);
+    cameras = std::max({cameras, a + 1, b + 1});
+  }
+  const int most_rounds = 2 * cameras;
+  std::vector<std::uint8_t>& in_round = rounds.camera_in_round;
+  in_round.assign(static_cast<size_t>(cameras) * most_rounds, 0);
   rounds.round_of_pair.assign(pairs.size(), 0);
   int round_count = 0;
   for (size_t k = 0; k < pairs.size(); ++k) {
-    auto round_has_a_camera_of_k = [&](int round) {
-      for (size_t other = 0; other < k; ++other) {
-        if (rounds.round_of_pair[other] != round) continue;
-        const auto [a, b] = pairs[k];
-        if (pairs[other].first == a || pairs[other].first == b || pairs[other].second == a || pairs[other].second == b) return true;
-      }
-      return false;
-    };
+    std::uint8_t* const rounds_of_a = in_round.data() + static_cast<size_t>(pairs[k].first) * most_rounds;
+    std::uint8_t* const rounds_of_b = in_round.data() + static_cast<size_t>(pairs[k].second) * most_rounds;
     int round = 0;
-    while (round_has_a_camera_of_k(round)) ++round;
+    while (rounds_of_a[round] || rounds_of_b[round]) ++round;
+    assert(round < most_rounds);
+    rounds_of_a[round] = rounds_of_b[round] = 1;
     rounds.round_of_pair[k] = round;
     round_count = std::max(round_count, round + 1);
   }
@@ -277,10 +283,12 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // their number of points: rounds of unequal pairs (or a round of one, with five pairs) left a
   // thread idle, and the Delaunay phase is about 70 % of clipping. A seam triangulated after
   // later rounds took more counts those later-taken triangles as kept, as they were for it.
-  std::vector<TakenSeam>& taken = scratch.taken;
-  taken.resize(result.pairs.size());
+  // Per pair; the scratch's lists only grow, so that a camera's pairs that come back after a
+  // frame set without it find their arrays.
+  if (scratch.taken.size() < result.pairs.size()) scratch.taken.resize(result.pairs.size());
+  if (scratch.stitch.size() < result.pairs.size()) scratch.stitch.resize(result.pairs.size());
+  const std::span<TakenSeam> taken(scratch.taken.data(), result.pairs.size());
   for (TakenSeam& seam : taken) seam.clear();  // the marks' clearing below reads them, even if taking fails half way
-  if (scratch.stitch.size() < taken.size()) scratch.stitch.resize(taken.size());
   // The seams mark the scratch's cameras (the round that took each triangle, the seam of each
   // pixel); the next call reads those marks as its own seams', so they are cleared after the
   // stitching, and also when an exception leaves it half done.

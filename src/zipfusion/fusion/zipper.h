@@ -9,6 +9,7 @@
 //! parallel. Thread safety: one ZipperScratch per concurrent call.
 
 #include <chrono>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -92,6 +93,7 @@ struct PairRounds {
   std::vector<int> round_begin;            // one more than there are rounds
   std::vector<int> round_of_pair;          // per pair as given, its round
   std::vector<int> next;                   // scratch of schedule_pairs
+  std::vector<std::uint8_t> camera_in_round;  // scratch of schedule_pairs: whether camera c is in round r
 
   size_t count() const { return round_begin.empty() ? 0 : round_begin.size() - 1; }
   std::span<const std::pair<int, int>> round(size_t r) const {

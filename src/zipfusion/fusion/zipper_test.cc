@@ -285,6 +285,31 @@ TEST(Zipper, CylinderSeenByFourCamerasIsOneComponent) {
   EXPECT_NEAR(area(mesh) / true_area, 1.0, 0.05);
 }
 
+// The scratch carries nothing from one frame set to the next: on one scratch, the four cameras,
+// then three (camera 2 without depth, its pairs gone), then four and three again give bit for bit
+// what a fresh scratch gives each time.
+TEST(Zipper, ReusedScratchGivesWhatAFreshOneGives) {
+  const Scene scene = four_cameras_around(torso_cylinder());
+  auto zipper = [&](ZipperScratch& scratch, bool with_camera_2) {
+    std::vector<DepthMesh> meshes = scene.meshes;  // the zipper clears removed triangles' bits
+    std::vector<ZipperCamera> cameras;
+    for (size_t i = 0; i < meshes.size(); ++i) cameras.push_back({i != 2 || with_camera_2 ? &meshes[i] : nullptr, &scene.colors[i], &scene.models[i]});
+    return zipper_meshes(cameras, {}, scratch);
+  };
+  ZipperScratch reused;
+  for (const bool with_camera_2 : {true, false, true, false}) {
+    ZipperScratch fresh;
+    const ZipperResult expected = zipper(fresh, with_camera_2);
+    const ZipperResult got = zipper(reused, with_camera_2);
+    ASSERT_GT(expected.stats.seam_added, 1000) << "with camera 2: " << with_camera_2;
+    EXPECT_EQ(expected.pairs.size(), with_camera_2 ? 4u : 2u);
+    EXPECT_EQ(got.pairs, expected.pairs);
+    EXPECT_EQ(got.mesh.triangles, expected.mesh.triangles) << "with camera 2: " << with_camera_2;
+    EXPECT_EQ(got.mesh.positions, expected.mesh.positions) << "with camera 2: " << with_camera_2;
+    EXPECT_EQ(got.mesh.colors, expected.mesh.colors) << "with camera 2: " << with_camera_2;
+  }
+}
+
 // FRBR's frontier and the seams' candidate lists test their triangles for existence only
 // (start_worklist, select_seeds): whatever they hold that still exists must be a boundary
 // triangle, as it was when added, since a mesh only loses triangles. Checked after a whole
