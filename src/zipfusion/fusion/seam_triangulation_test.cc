@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <utility>
 #include <vector>
@@ -151,6 +152,41 @@ TEST(Constrain, SnapsACrossingBesideAnEndAsCgalDoes) {
   EXPECT_EQ(scratch.left_to_cgal, 0);
   EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal));
   EXPECT_TRUE(by_flips.is_edge(flips_handle[6], flips_handle[4]) && by_flips.is_edge(flips_handle[4], flips_handle[7]));
+}
+
+// Degenerate crossings: several constraints through one point that is no vertex, and pairs of
+// constraints crossing at angles of 1e-2 to 1e-14 radians. The result is still CGAL's to the bit,
+// the vertices made at the crossings included.
+TEST(Constrain, MatchesCgalWhereManyCrossAtOnePointOrNearlyParallel) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    std::mt19937 random(seed);
+    std::vector<Point> points = jittered_grid(random);
+    std::uniform_real_distribution<double> unit(0, 1);
+    std::vector<std::pair<int, int>> segments;
+    auto add_segment = [&](double x0, double y0, double x1, double y1) {
+      points.emplace_back(x0, y0);
+      points.emplace_back(x1, y1);
+      segments.emplace_back(static_cast<int>(points.size()) - 2, static_cast<int>(points.size()) - 1);
+    };
+    const double centre_x = 9.5 + 0.1 * unit(random), centre_y = 9.5 + 0.1 * unit(random);
+    for (unsigned k = 0; k < 3 + seed; ++k) {
+      const double angle = std::numbers::pi * unit(random), out = 3 + 5 * unit(random), back = 3 + 5 * unit(random);
+      add_segment(centre_x + out * std::cos(angle), centre_y + out * std::sin(angle), centre_x - back * std::cos(angle),
+                  centre_y - back * std::sin(angle));
+    }
+    for (int k = 0; k < 4; ++k) {
+      const double angle = std::numbers::pi * unit(random), apart = std::pow(10.0, -2 - 12 * unit(random));
+      const double x = 4 + 11 * unit(random), y = 4 + 11 * unit(random);
+      for (const double a : {angle, angle + apart}) add_segment(x - 2 * std::cos(a), y - 2 * std::sin(a), x + 2 * std::cos(a), y + 2 * std::sin(a));
+    }
+    BothWays both(points);
+    auto& [by_cgal, by_flips, cgal_handle, flips_handle, scratch] = both;
+    both.constrain_each(segments);
+    ASSERT_GE(by_cgal.number_of_vertices(), points.size() + 5) << "seed " << seed << ": too few crossings to test";
+    EXPECT_TRUE(by_flips.is_valid()) << "seed " << seed;
+    EXPECT_EQ(by_flips.number_of_vertices(), by_cgal.number_of_vertices()) << "seed " << seed;
+    EXPECT_EQ(placed_edges(by_flips), placed_edges(by_cgal)) << "seed " << seed;
+  }
 }
 
 // Points on an integer grid: four on a circle in every square, three on a line along every row,
