@@ -129,9 +129,9 @@ void schedule_pairs(const std::vector<std::pair<int, int>>& pairs, PairRounds& r
   rounds.round_begin.assign(round_count + 1, 0);
   for (const int round : rounds.round_of_pair) ++rounds.round_begin[round + 1];
   for (int r = 0; r < round_count; ++r) rounds.round_begin[r + 1] += rounds.round_begin[r];
-  rounds.pairs.resize(pairs.size());
+  rounds.by_round.resize(pairs.size());
   rounds.next.assign(rounds.round_begin.begin(), rounds.round_begin.end() - 1);
-  for (size_t k = 0; k < pairs.size(); ++k) rounds.pairs[rounds.next[rounds.round_of_pair[k]]++] = pairs[k];
+  for (size_t k = 0; k < pairs.size(); ++k) rounds.by_round[rounds.next[rounds.round_of_pair[k]]++] = static_cast<int>(k);
 }
 
 PairRounds schedule_pairs(const std::vector<std::pair<int, int>>& pairs) {
@@ -218,9 +218,6 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
     compute_overlap_mask(views[b][levels], views[a][levels], 2 * d_r, scratch.masks[i].second);
   }, options.num_threads);
-  auto pair_index_of = [&](const std::pair<int, int>& pair) {
-    return static_cast<size_t>(std::find(result.pairs.begin(), result.pairs.end(), pair) - result.pairs.begin());
-  };
   PairRounds& rounds = scratch.rounds;
   schedule_pairs(result.pairs, rounds);
   // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
@@ -251,13 +248,14 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     }
     const float distance = d_r * static_cast<float>(std::pow(options.coarse_shrink, level));
     for (size_t r = 0; r < rounds.count(); ++r) {
-      const std::span<const std::pair<int, int>> round = rounds.round(r);
+      const std::span<const int> round = rounds.round(r);
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
-        const auto [a, b] = round[i];
-        const auto& masks = scratch.masks[pair_index_of(round[i])];
+        const int pair_index = round[i];
+        const auto [a, b] = result.pairs[pair_index];
+        const auto& masks = scratch.masks[pair_index];
         const FrbrResult removed = remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, masks.first,
                                                                masks.second, scratch.cameras[a].frbr, scratch.cameras[b].frbr);
-        if (level == 0) removed_at_full[pair_index_of(round[i])] = removed.removed_a + removed.removed_b;
+        if (level == 0) removed_at_full[pair_index] = removed.removed_a + removed.removed_b;
       }, options.num_threads);
     }
   }
@@ -306,10 +304,10 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   OnScopeExit clear_seam_marks_on_error(clear_seam_marks);
   for (int c : active) scratch.cameras[c].taken_round.resize(cameras[c].mesh->triangles.size() * 2, 0);
   for (size_t r = 0; r < rounds.count(); ++r) {
-    const std::span<const std::pair<int, int>> round = rounds.round(r);
+    const std::span<const int> round = rounds.round(r);
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
-      const auto [a, b] = round[i];
-      const size_t pair_index = pair_index_of(round[i]);
+      const int pair_index = round[i];
+      const auto [a, b] = result.pairs[pair_index];
       take_seam(views[a][0], views[b][0], seam_options, scratch.masks[pair_index].first, scratch.masks[pair_index].second,
                 scratch.cameras[a].seam, scratch.cameras[b].seam, taken[pair_index]);
       for (int id : taken[pair_index].taken_a) scratch.cameras[a].taken_round[id] = static_cast<std::uint8_t>(r + 1);

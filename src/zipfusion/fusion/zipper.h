@@ -86,18 +86,19 @@ struct ZipperResult {
   std::vector<std::pair<int, int>> pairs;  // the overlapping pairs found
 };
 
-//! Camera pairs grouped into rounds in which no camera appears twice, as CSR: round r is
-//! pairs[round_begin[r]] up to pairs[round_begin[r + 1]].
+//! Camera pairs grouped into rounds in which no camera appears twice, as CSR of the pairs'
+//! indices (in the list given to schedule_pairs): round r is by_round[round_begin[r]] up to
+//! by_round[round_begin[r + 1]].
 struct PairRounds {
-  std::vector<std::pair<int, int>> pairs;  // by round, each round's in their given order
-  std::vector<int> round_begin;            // one more than there are rounds
-  std::vector<int> round_of_pair;          // per pair as given, its round
-  std::vector<int> next;                   // scratch of schedule_pairs
+  std::vector<int> by_round;                  // the pairs' indices by round, each round's in their given order
+  std::vector<int> round_begin;               // one more than there are rounds
+  std::vector<int> round_of_pair;             // per pair as given, its round
+  std::vector<int> next;                      // scratch of schedule_pairs
   std::vector<std::uint8_t> camera_in_round;  // scratch of schedule_pairs: whether camera c is in round r
 
   size_t count() const { return round_begin.empty() ? 0 : round_begin.size() - 1; }
-  std::span<const std::pair<int, int>> round(size_t r) const {
-    return {pairs.data() + round_begin[r], static_cast<size_t>(round_begin[r + 1] - round_begin[r])};
+  std::span<const int> round(size_t r) const {
+    return {by_round.data() + round_begin[r], static_cast<size_t>(round_begin[r + 1] - round_begin[r])};
   }
 };
 
