@@ -1129,8 +1129,11 @@ struct StitchScratch::Buffers {
   std::vector<ViewPoint> projections;
   std::vector<SeamSurface::NearPixel> near;
   std::vector<Eigen::Vector2f> flat;
-  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>> points;
+  std::vector<SeamPoint> points;
   std::vector<Delaunay::Vertex_handle> handle;
+  InsertionScratch insertion;
+  PlainDelaunay points_only;  // kept with their containers' blocks (clear_keeping_memory)
+  Delaunay triangulation;
   std::vector<std::array<int, 3>> kept_triangles;
   std::vector<std::uint8_t> kept_triangle_corner;
   ConstraintScratch constraints;
@@ -1249,7 +1252,7 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   }
   std::vector<Eigen::Vector2f>& flat = buffers.flat;
   flat.resize(seam.vertices.size());  // every point's is set here
-  std::vector<std::pair<Kernel::Point_2, SeamVertexInfo>>& points = buffers.points;
+  std::vector<SeamPoint>& points = buffers.points;
   points.clear();
   for (size_t i = 0; i < seam.vertices.size(); ++i) {
     flat[i] = layout(positions[i]);
@@ -1260,32 +1263,15 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // each lies next to the one before: inserted one by one, each from the face of the previous,
   // the point location walks a step or two. CGAL's range insertion sorts the points along a
   // Hilbert curve first, which cost more than it saved here (samba-4cam frame 0, one thread:
-  // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation). A skeleton of the
-  // whole seam goes in first, every 16th point and then every 4th, so that the others mostly fall
-  // inside the hull rather than extend it: with the constrained triangulation's own insertion,
-  // whose flips cost more, that saved 4 % of clipping's instructions. Into the plain Delaunay
-  // triangulation below it makes no difference (insertion 2.70–2.81 ms a frame set with any
-  // strides or none); it stays because the order of CGAL's faces, which fairing's sums follow,
-  // comes from the order of insertion, and with it the seams' last bits.
-  constexpr size_t kSkeletonStrides[] = {16, 4};
-  PlainDelaunay points_only;
+  // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation). insert_points puts
+  // the hull in first, then a skeleton of the seam, then the rest. The triangulations are kept
+  // between seams and frames (clear_keeping_memory) for the blocks of their containers.
+  PlainDelaunay& points_only = buffers.points_only;
+  clear_keeping_memory(points_only);
   std::vector<Delaunay::Vertex_handle>& handle = buffers.handle;
-  handle.assign(seam.vertices.size(), Delaunay::Vertex_handle());
-  Delaunay::Face_handle hint;
-  auto insert_point = [&](const std::pair<Kernel::Point_2, SeamVertexInfo>& point) {
-    if (handle[point.second.index] != Delaunay::Vertex_handle()) return;  // in the skeleton
-    const Delaunay::Vertex_handle v = points_only.insert(point.first, hint);
-    // A seam vertex at the 2-D position of an earlier one shares that vertex and its index.
-    if (v->info().index < 0) v->info() = point.second;
-    handle[point.second.index] = v;
-    hint = v->face();
-  };
-  for (const size_t stride : kSkeletonStrides) {
-    for (size_t k = 0; k < points.size(); k += stride) insert_point(points[k]);
-  }
-  for (const auto& point : points) insert_point(point);
-  Delaunay triangulation;
-  triangulation.swap(points_only);
+  insert_points(points_only, points, handle, buffers.insertion);
+  Delaunay& triangulation = buffers.triangulation;
+  triangulation.swap(points_only);  // points_only now holds the last seam's, to be cleared next time
   // Every kept edge becomes a constraint (constrain). With the seam laid out at locally averaged
   // depth (the default; filtered depth laid out as measured is about as regular), about 90 % of
   // them are already edges of the triangulation and are only marked; the others are flipped into
@@ -1299,8 +1285,8 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // are constraints), which would double the kept triangle. covered_by_triangle below misses it
   // where the seam has moved the corners so far that the centroid projects beside the triangle's
   // cell (samba-4cam frame 31 filtered: one such face, turned over against its kept twin). The
-  // corners are taken as the triangulation numbers them (a point at the 2-D position of an
-  // earlier one has that one's index), and flagged, so that most faces are cleared by three
+  // corners are taken as the triangulation numbers them (a point at the 2-D position of a
+  // lower-numbered one has that one's index), and flagged, so that most faces are cleared by three
   // loads (the output test runs for every face the flips, the relaxation and the dropping touch).
   std::vector<std::array<int, 3>>& kept_triangles = buffers.kept_triangles;
   kept_triangles.clear();

@@ -2,7 +2,11 @@
 
 #include <CGAL/intersections.h>
 
+#include <algorithm>
+#include <array>
+#include <cassert>
 #include <cstddef>
+#include <iterator>
 #include <optional>
 
 namespace zipfusion {
@@ -220,7 +224,119 @@ Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex
   return Flipped::kDone;
 }
 
+// Empties a container of CGAL's triangulation as Compact_container::clear does, but keeps its
+// blocks. Its free list hands out first the slot put on it last: erased as they lie, the slots
+// would come back in the order the last seam left them. So every slot is taken and then put back
+// from the last to the first, and the list hands them out from the first block's first slot on,
+// as a new container does with the blocks it allocates.
+template <typename Slots>
+void free_in_block_order(Slots& slots) {
+  for (auto it = slots.begin(); it != slots.end();) slots.erase(it++);
+  const size_t capacity = slots.capacity();
+  for (size_t k = 0; k < capacity; ++k) slots.emplace();
+  if (slots.empty()) return;
+  for (auto it = std::prev(slots.end());;) {
+    const auto slot = it;
+    const bool first = it == slots.begin();
+    if (!first) --it;
+    slots.erase(slot);
+    if (first) return;
+  }
+}
+
+// The corners of the points' convex hull, counter-clockwise, into s.hull (Andrew's monotone
+// chain, with the kernel's exact orientation: collinear points and repeated ones are no corners);
+// empty when the points all lie on one line.
+void find_hull(const std::vector<SeamPoint>& points, InsertionScratch& s) {
+  std::vector<int>& order = s.by_position;
+  std::vector<int>& hull = s.hull;
+  hull.clear();
+  order.resize(points.size());
+  for (size_t k = 0; k < points.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(), [&](int k, int l) {
+    return points[k].first < points[l].first || (points[k].first == points[l].first && k < l);
+  });
+  auto turns_left = [&](int a, int b, int c) {
+    return CGAL::orientation(points[a].first, points[b].first, points[c].first) == CGAL::LEFT_TURN;
+  };
+  auto extend = [&](int k, size_t keep) {
+    while (hull.size() >= keep + 2 && !turns_left(hull[hull.size() - 2], hull.back(), k)) hull.pop_back();
+    hull.push_back(k);
+  };
+  for (const int k : order) extend(k, 0);  // the lower chain, left to right
+  const size_t lower = hull.size() - 1;
+  for (auto it = order.rbegin() + 1; it != order.rend(); ++it) extend(*it, lower);  // the upper, back
+  hull.pop_back();  // the first point again
+  if (hull.size() < 3) hull.clear();
+}
+
+// Makes empty `triangulation` the triangle (a, b, c), counter-clockwise, and its three infinite
+// faces, directly in its data structure: CGAL's insertion of the first three points raises the
+// dimension twice, and lists the faces each time.
+std::array<Vertex, 3> start_with_triangle(SeamTriangulationBase& triangulation, const Point& a, const Point& b, const Point& c) {
+  SeamTriangulationData& tds = triangulation.tds();
+  const Vertex infinite = triangulation.infinite_vertex();
+  tds.delete_face(infinite->face());  // the face of dimension −1 that held it
+  const Vertex va = tds.create_vertex(), vb = tds.create_vertex(), vc = tds.create_vertex();
+  va->set_point(a);
+  vb->set_point(b);
+  vc->set_point(c);
+  const Face f = tds.create_face(va, vb, vc);
+  // Beyond each edge of f, the infinite face with that edge the other way round.
+  const Face beyond_a = tds.create_face(vc, vb, infinite), beyond_b = tds.create_face(va, vc, infinite),
+             beyond_c = tds.create_face(vb, va, infinite);
+  tds.set_adjacency(f, 0, beyond_a, 2);
+  tds.set_adjacency(f, 1, beyond_b, 2);
+  tds.set_adjacency(f, 2, beyond_c, 2);
+  tds.set_adjacency(beyond_a, 0, beyond_c, 1);  // across (b, ∞)
+  tds.set_adjacency(beyond_a, 1, beyond_b, 0);  // across (∞, c)
+  tds.set_adjacency(beyond_b, 1, beyond_c, 0);  // across (∞, a)
+  va->set_face(f);
+  vb->set_face(f);
+  vc->set_face(f);
+  infinite->set_face(beyond_a);
+  tds.set_dimension(2);
+  return {va, vb, vc};
+}
+
 }  // namespace
+
+void clear_keeping_memory(SeamTriangulationBase& triangulation) {
+  free_in_block_order(triangulation.tds().faces());
+  free_in_block_order(triangulation.tds().vertices());
+  triangulation.tds().set_dimension(-2);
+  triangulation.set_infinite_vertex(triangulation.tds().insert_first());
+}
+
+void insert_points(SeamPointTriangulation& triangulation, const std::vector<SeamPoint>& points, std::vector<Vertex>& handle,
+                   InsertionScratch& scratch) {
+  assert(triangulation.number_of_vertices() == 0);
+  handle.assign(points.size(), Vertex());
+  Face hint;
+  auto place = [&](size_t k, Vertex v) {
+    if (v->info().index < 0 || points[k].second.index < v->info().index) v->info() = points[k].second;
+    handle[k] = v;
+    hint = v->face();
+  };
+  auto insert = [&](size_t k) {
+    if (handle[k] == Vertex()) place(k, triangulation.insert(points[k].first, hint));
+  };
+  find_hull(points, scratch);
+  const std::vector<int>& hull = scratch.hull;
+  if (!hull.empty()) {
+    const std::array<Vertex, 3> corners =
+        start_with_triangle(triangulation, points[hull[0]].first, points[hull[1]].first, points[hull[2]].first);
+    for (int k = 0; k < 3; ++k) place(static_cast<size_t>(hull[k]), corners[k]);
+    for (size_t k = 3; k < hull.size(); ++k) insert(static_cast<size_t>(hull[k]));
+  }
+  // A skeleton of the whole seam, then the rest: the same triangulation in any order, but this
+  // one sets the faces' order in memory, which fairing's float sums follow (clipping.cc).
+  constexpr size_t kSkeletonStrides[] = {16, 4};
+  for (const size_t stride : kSkeletonStrides) {
+    for (size_t k = 0; k < points.size(); k += stride) insert(k);
+  }
+  for (size_t k = 0; k < points.size(); ++k) insert(k);
+}
 
 void constrain(SeamTriangulation& triangulation, Vertex from, Vertex to, ConstraintScratch& scratch) {
   // Empty as every call leaves them, unless one was cut short by an exception: their handles

@@ -39,6 +39,39 @@ using SeamTriangulation = CGAL::Constrained_Delaunay_triangulation_2<SeamKernel,
 //! and test for them and for infinite faces, to the same result while there are none.
 using SeamPointTriangulation = CGAL::Delaunay_triangulation_2<SeamKernel, SeamTriangulationData>;
 
+//! What the two share: their data structure, and what CGAL's Triangulation_2 does with it.
+using SeamTriangulationBase = CGAL::Triangulation_2<SeamKernel, SeamTriangulationData>;
+//! A seam point in the plane, with its info; its index is its place in the list of points.
+using SeamPoint = std::pair<SeamKernel::Point_2, SeamVertexInfo>;
+
+//! Empties `triangulation` as CGAL's `clear` does, but keeps its containers' blocks for the next
+//! seam (`clear` frees them, and a new triangulation allocates them again a block at a time).
+//! The containers then hand out their slots in the order a new triangulation's would, so that a
+//! reused triangulation lays its faces out in memory as a new one does: their order is the order
+//! of the seam's float sums (fairing), and a reused scratch gives the seam a new one gives, to
+//! the bit. Allocates nothing.
+void clear_keeping_memory(SeamTriangulationBase& triangulation);
+
+//! Work space of `insert_points`, reused across calls.
+struct InsertionScratch {
+  std::vector<int> by_position;  //!< the points' indices in lexicographic order of their points
+  std::vector<int> hull;         //!< the convex hull's corners, counter-clockwise
+};
+
+//! Inserts every point into `triangulation`, which must be empty (new or cleared), and sets
+//! handle[k] to point k's vertex; a point at the position of another shares its vertex, whose
+//! info is that of the lower index. The triangulation is CGAL's Delaunay triangulation of the
+//! points (unique: CGAL perturbs co-circular points symbolically), whatever the order of
+//! insertion; the order only sets where its faces lie in memory. The convex hull's corners go in
+//! first, counter-clockwise, the first three as one triangle built directly: so no point extends
+//! the hull over more than one edge and no insertion changes the dimension, the two cases where
+//! CGAL's insertion allocates (lists of the faces it changes). Then every 16th point, every 4th,
+//! and the rest, each located from the face of the one before (points in the seam's order lie
+//! next to each other). Allocates nothing once `scratch` and `handle` have grown, CGAL's
+//! containers aside (clear_keeping_memory), unless the points all lie on one line.
+void insert_points(SeamPointTriangulation& triangulation, const std::vector<SeamPoint>& points,
+                   std::vector<SeamPointTriangulation::Vertex_handle>& handle, InsertionScratch& scratch);
+
 //! Work space of `constrain`, reused across calls: edges as their two vertices, since a flip
 //! replaces the faces' handles around it.
 struct ConstraintScratch {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -250,6 +251,146 @@ TEST(Constrain, AllocatesNothingOnceItsScratchHasGrown) {
   allocations(false);  // grows the scratch
   EXPECT_EQ(allocations(false), 0);
   EXPECT_GT(allocations(true), 40);  // CGAL's insertion, for comparison: at least its work stack each
+}
+
+// The points as insert_points takes them: info index k at place k.
+std::vector<SeamPoint> numbered(const std::vector<Point>& points) {
+  std::vector<SeamPoint> numbered;
+  for (size_t k = 0; k < points.size(); ++k) numbered.emplace_back(points[k], SeamVertexInfo{static_cast<int>(k)});
+  return numbered;
+}
+
+// Every finite edge of a triangulation as its corners' places, sorted.
+std::vector<std::pair<Point, Point>> edges_of(const SeamTriangulationBase& triangulation) {
+  std::vector<std::pair<Point, Point>> edges;
+  for (auto e = triangulation.finite_edges_begin(); e != triangulation.finite_edges_end(); ++e) {
+    Point p = e->first->vertex(SeamTriangulation::cw(e->second))->point();
+    Point q = e->first->vertex(SeamTriangulation::ccw(e->second))->point();
+    if (q < p) std::swap(p, q);
+    edges.emplace_back(p, q);
+  }
+  std::sort(edges.begin(), edges.end());
+  return edges;
+}
+
+// The faces in the order the triangulation's container holds them, each as its corners' indices
+// (−2 for the infinite vertex): equal for two triangulations whose faces lie in the same order.
+std::vector<std::array<int, 3>> faces_in_memory_order(const SeamTriangulationBase& triangulation) {
+  std::vector<std::array<int, 3>> faces;
+  for (auto f = triangulation.all_faces_begin(); f != triangulation.all_faces_end(); ++f) {
+    std::array<int, 3> corners;
+    for (int k = 0; k < 3; ++k) corners[k] = triangulation.is_infinite(f->vertex(k)) ? -2 : f->vertex(k)->info().index;
+    faces.push_back(corners);
+  }
+  return faces;
+}
+
+// Point sets a seam can have: a jittered grid in row order (as seam points come, each next to
+// the one before) and shuffled; an integer grid, whose points are co-circular by fours and
+// collinear along the hull; and a jittered grid with every fifth point repeated further on.
+std::vector<std::vector<Point>> seam_like_point_sets(std::mt19937& random) {
+  std::vector<std::vector<Point>> sets;
+  sets.push_back(jittered_grid(random));
+  std::vector<Point> shuffled = jittered_grid(random);
+  std::shuffle(shuffled.begin(), shuffled.end(), random);
+  sets.push_back(shuffled);
+  std::vector<Point> integer;
+  for (int y = 0; y < 12; ++y) {
+    for (int x = 0; x < 15; ++x) integer.emplace_back(x, y);
+  }
+  sets.push_back(integer);
+  std::vector<Point> repeated = jittered_grid(random);
+  for (size_t k = 0; k < 400; k += 5) repeated.push_back(repeated[k]);
+  std::shuffle(repeated.begin() + 300, repeated.end(), random);
+  sets.push_back(repeated);
+  return sets;
+}
+
+TEST(InsertPoints, GivesCgalsDelaunayTriangulationWithTheLowestIndexAtEachPlace) {
+  std::mt19937 random(11);
+  InsertionScratch scratch;
+  for (const std::vector<Point>& points : seam_like_point_sets(random)) {
+    SeamPointTriangulation by_cgal;
+    by_cgal.insert(points.begin(), points.end());
+    SeamPointTriangulation triangulation;
+    std::vector<SeamPointTriangulation::Vertex_handle> handle;
+    insert_points(triangulation, numbered(points), handle, scratch);
+    ASSERT_TRUE(triangulation.is_valid());
+    EXPECT_EQ(triangulation.number_of_vertices(), by_cgal.number_of_vertices());
+    EXPECT_EQ(edges_of(triangulation), edges_of(by_cgal));
+    for (size_t k = 0; k < points.size(); ++k) {
+      ASSERT_EQ(handle[k]->point(), points[k]);
+      const int lowest = static_cast<int>(std::find(points.begin(), points.end(), points[k]) - points.begin());
+      EXPECT_EQ(handle[k]->info().index, lowest) << "point " << k;
+    }
+    EXPECT_GE(scratch.hull.size(), 4u);  // the triangle built directly, then insertions on the hull
+  }
+}
+
+TEST(InsertPoints, PointsOnOneLineAreInsertedByCgal) {
+  std::vector<Point> points;
+  for (int k = 0; k < 10; ++k) points.emplace_back(0.5 * k, 0.25 * k);
+  points.push_back(points[3]);
+  SeamPointTriangulation triangulation;
+  std::vector<SeamPointTriangulation::Vertex_handle> handle;
+  InsertionScratch scratch;
+  insert_points(triangulation, numbered(points), handle, scratch);
+  EXPECT_TRUE(triangulation.is_valid());
+  EXPECT_EQ(triangulation.dimension(), 1);
+  EXPECT_EQ(triangulation.number_of_vertices(), 10u);
+  EXPECT_EQ(handle[10], handle[3]);
+  EXPECT_EQ(handle[10]->info().index, 3);
+}
+
+// A triangulation cleared by clear_keeping_memory after seams of other sizes, some of its
+// vertices removed (which leaves its containers' free slots out of order), lays out the next
+// seam's faces in memory exactly as a new triangulation does: fairing's sums follow that order.
+TEST(ClearKeepingMemory, ReusedTriangulationLaysOutFacesAsANewOne) {
+  std::mt19937 random(5);
+  std::vector<Point> small = jittered_grid(random), large = jittered_grid(random);
+  small.resize(150);
+  for (const Point& p : jittered_grid(random)) large.emplace_back(p.x() + 20, p.y());
+  InsertionScratch scratch;
+  std::vector<SeamPointTriangulation::Vertex_handle> handle;
+  SeamPointTriangulation reused;
+  for (const std::vector<Point>* earlier : {&large, &small}) {
+    clear_keeping_memory(reused);
+    insert_points(reused, numbered(*earlier), handle, scratch);
+    for (size_t k = 7; k < earlier->size(); k += 13) {
+      if (handle[k]->info().index == static_cast<int>(k)) reused.remove(handle[k]);
+    }
+  }
+  for (const std::vector<Point>* points : {&small, &large, &small}) {
+    SeamPointTriangulation fresh;
+    insert_points(fresh, numbered(*points), handle, scratch);
+    clear_keeping_memory(reused);
+    insert_points(reused, numbered(*points), handle, scratch);
+    ASSERT_TRUE(reused.is_valid());
+    EXPECT_EQ(faces_in_memory_order(reused), faces_in_memory_order(fresh)) << points->size() << " points";
+  }
+}
+
+TEST(InsertPoints, AllocatesNothingIntoAReusedTriangulation) {
+  std::mt19937 random(3);
+  const std::vector<SeamPoint> points = numbered(jittered_grid(random));
+  InsertionScratch scratch;
+  std::vector<SeamPointTriangulation::Vertex_handle> handle;
+  SeamPointTriangulation triangulation;
+  insert_points(triangulation, points, handle, scratch);  // grows the scratch and the containers
+  const long long before = g_allocations.load();
+  for (int k = 0; k < 3; ++k) {
+    clear_keeping_memory(triangulation);
+    insert_points(triangulation, points, handle, scratch);
+  }
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  // CGAL's insertion into a new triangulation, for comparison: its blocks, and lists wherever a
+  // point extends the hull over several edges or raises the dimension.
+  const long long before_cgal = g_allocations.load();
+  {
+    SeamPointTriangulation by_cgal;
+    for (const SeamPoint& p : points) by_cgal.insert(p.first);
+  }
+  EXPECT_GT(g_allocations.load() - before_cgal, 20);
 }
 
 }  // namespace
