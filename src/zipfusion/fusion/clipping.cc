@@ -732,6 +732,7 @@ struct CreaseStepScratch {
   std::vector<std::pair<Delaunay::Vertex_handle, Delaunay::Vertex_handle>> flip_candidates;
   std::vector<Delaunay::Vertex_handle> corners, moved, dropped, around;
   std::vector<Delaunay::Face_handle> faces;
+  RemovalScratch removal;
 };
 
 // Scratch of fair_seam.
@@ -1001,7 +1002,7 @@ void drop_crease_points(Delaunay& triangulation, const std::vector<std::uint8_t>
                                 [&](Delaunay::Vertex_handle w) { return std::binary_search(dropped.begin(), dropped.end(), w, by_index); }),
                  around.end());
     watch.forget(dropped);
-    for (const Delaunay::Vertex_handle v : dropped) triangulation.remove(v);
+    for (const Delaunay::Vertex_handle v : dropped) remove_point(triangulation, v, s.removal);
     // Every new face has its corners among the points around.
     for (const Delaunay::Vertex_handle w : around) watch.faces_changed(w);
     if (triangulation.dimension() != 2) return;

@@ -32,18 +32,18 @@ bool mark_constrained(SeamTriangulation& triangulation, Vertex from, Vertex to) 
 
 // Flips the edges the constraint's flips made, and those around each flip, until each is
 // constrained Delaunay (Lawson's flips; CGAL's test, with its perturbation of co-circular points).
-void restore_delaunay(SeamTriangulation& triangulation, ConstraintScratch& s) {
-  while (!s.created.empty()) {
-    const auto [u, w] = s.created.back();
-    s.created.pop_back();
+void restore_delaunay(SeamTriangulation& triangulation, std::vector<ConstraintScratch::VertexPair>& created) {
+  while (!created.empty()) {
+    const auto [u, w] = created.back();
+    created.pop_back();
     Face f;
     int e;
     if (!triangulation.is_edge(u, w, f, e) || !triangulation.is_flipable(f, e)) continue;
     const Vertex p = f->vertex(e), q = f->neighbor(e)->vertex(triangulation.mirror_index(f, e));
     triangulation.flip(f, e);
     for (const Vertex corner : {u, w}) {
-      s.created.emplace_back(p, corner);
-      s.created.emplace_back(q, corner);
+      created.emplace_back(p, corner);
+      created.emplace_back(q, corner);
     }
   }
 }
@@ -71,7 +71,7 @@ void constrain_at_depth(SeamTriangulation& triangulation, Vertex from, Vertex to
       case Flipped::kLeftToCgal:
         ++s.left_to_cgal;
         triangulation.insert_constraint(from, to);
-        restore_delaunay(triangulation, s);  // after flips that stopped short, if any
+        restore_delaunay(triangulation, s.created);  // after flips that stopped short, if any
         return;
     }
   }
@@ -220,7 +220,7 @@ Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex
     }
   }
   if (!mark_constrained(triangulation, from, to)) return Flipped::kLeftToCgal;
-  restore_delaunay(triangulation, s);
+  restore_delaunay(triangulation, s.created);
   return Flipped::kDone;
 }
 
@@ -299,7 +299,81 @@ std::array<Vertex, 3> start_with_triangle(SeamTriangulationBase& triangulation, 
   return {va, vb, vc};
 }
 
+// Is corner k of the simple polygon `polygon` an ear: strictly convex, and its triangle with the
+// corners beside it holds no other corner, inside or on its border (then the segment between
+// those two is a diagonal inside the polygon)?
+bool is_ear(const SeamTriangulation& triangulation, const std::vector<Vertex>& polygon, size_t k) {
+  const size_t n = polygon.size(), before = (k + n - 1) % n, after = (k + 1) % n;
+  const Point &a = polygon[before]->point(), &b = polygon[k]->point(), &c = polygon[after]->point();
+  if (triangulation.orientation(a, b, c) != CGAL::LEFT_TURN) return false;
+  for (size_t m = 0; m < n; ++m) {
+    if (m == before || m == k || m == after) continue;
+    const Point& p = polygon[m]->point();
+    if (triangulation.orientation(a, b, p) != CGAL::RIGHT_TURN && triangulation.orientation(b, c, p) != CGAL::RIGHT_TURN &&
+        triangulation.orientation(c, a, p) != CGAL::RIGHT_TURN) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// The ears that cut the polygon of v's neighbours (s.link) down to a triangle, in turn, each as
+// its place in what is left of the polygon then, into s.ears; false, with nothing changed, where
+// some step finds none (a simple polygon always has one; this only guards).
+bool find_ears(const SeamTriangulation& triangulation, RemovalScratch& s) {
+  s.polygon = s.link;
+  s.ears.clear();
+  while (s.polygon.size() > 3) {
+    size_t k = 0;
+    while (k < s.polygon.size() && !is_ear(triangulation, s.polygon, k)) ++k;
+    if (k == s.polygon.size()) return false;
+    s.ears.push_back(static_cast<int>(k));
+    s.polygon.erase(s.polygon.begin() + static_cast<std::ptrdiff_t>(k));
+  }
+  return true;
+}
+
 }  // namespace
+
+void remove_point(SeamTriangulation& triangulation, Vertex v, RemovalScratch& s) {
+  constexpr size_t kMostNeighbours = 64;  // the ears' search takes the square of the neighbours each
+  s.link.clear();
+  bool to_cgal = triangulation.dimension() != 2;
+  if (!to_cgal) {
+    SeamTriangulation::Vertex_circulator w = triangulation.incident_vertices(v), first = w;
+    do {
+      to_cgal = triangulation.is_infinite(w) || s.link.size() == kMostNeighbours;
+      s.link.push_back(w);
+    } while (!to_cgal && ++w != first);
+  }
+  if (to_cgal || !find_ears(triangulation, s)) {
+    ++s.left_to_cgal;
+    triangulation.remove(v);
+    return;
+  }
+  // The hole's edges: its border (the link's sides) and the ears' diagonals, to be tested once v
+  // is gone. Each ear is cut off by flipping v's edge to its tip: the ear becomes a face, and the
+  // face left to v spans the tip's two neighbours (for a while it may lie the wrong way round:
+  // nothing reads its geometry before v goes).
+  s.created.clear();
+  for (size_t k = 0; k < s.link.size(); ++k) s.created.emplace_back(s.link[k], s.link[(k + 1) % s.link.size()]);
+  s.polygon = s.link;
+  for (const int ear : s.ears) {
+    const size_t n = s.polygon.size(), k = static_cast<size_t>(ear);
+    Face f;
+    int i;
+    [[maybe_unused]] const bool is_edge = triangulation.is_edge(v, s.polygon[k], f, i);
+    assert(is_edge);
+    triangulation.flip(f, i);
+    s.created.emplace_back(s.polygon[(k + n - 1) % n], s.polygon[(k + 1) % n]);
+    s.polygon.erase(s.polygon.begin() + ear);
+  }
+  // v has three neighbours: one of its faces becomes their triangle, the other two go.
+  const Face kept = v->face();
+  triangulation.tds().remove_degree_3(v, kept);
+  for (int k = 0; k < 3; ++k) kept->set_constraint(k, kept->neighbor(k)->is_constrained(triangulation.mirror_index(kept, k)));
+  restore_delaunay(triangulation, s.created);
+}
 
 void clear_keeping_memory(SeamTriangulationBase& triangulation) {
   free_in_block_order(triangulation.tds().faces());

@@ -81,6 +81,25 @@ struct ConstraintScratch {
   long left_to_cgal = 0;             //!< segments (or their rests) given to CGAL's insertion, counted up
 };
 
+//! Work space of `remove_point`, reused across calls.
+struct RemovalScratch {
+  std::vector<SeamTriangulation::Vertex_handle> link;  //!< the point's neighbours, counter-clockwise
+  std::vector<SeamTriangulation::Vertex_handle> polygon;  //!< the link as ears are cut off it
+  std::vector<int> ears;  //!< the corners of the link cut off in turn, as places in `polygon` then
+  std::vector<ConstraintScratch::VertexPair> created;  //!< the hole's edges, to be made Delaunay
+  long left_to_cgal = 0;  //!< points removed by CGAL's `remove`, counted up
+};
+
+//! Removes vertex `v`, which no constrained edge touches, from `triangulation`, which stays
+//! constrained Delaunay: the triangulation CGAL's `remove(v)` makes (the hole's triangulation is
+//! unique, CGAL perturbing co-circular points symbolically in both). The hole is cut into ears by
+//! flips of v's edges until v has three neighbours, v goes with its three faces, and the hole's
+//! edges are then flipped until Delaunay (Lawson). Allocates nothing once `scratch` has grown,
+//! where CGAL's removal lists the hole's edges twice and its sub-holes. A point on the convex
+//! hull, of more than 64 neighbours, or in a triangulation of dimension below 2 goes to CGAL's
+//! `remove` (`scratch.left_to_cgal` counts those).
+void remove_point(SeamTriangulation& triangulation, SeamTriangulation::Vertex_handle v, RemovalScratch& scratch);
+
 //! Makes the segment between two vertices a constrained edge of the triangulation, which stays
 //! constrained Delaunay: the triangulation CGAL's `insert_constraint(from, to)` makes, up to the
 //! choice among co-circular points. An edge that is already there is only marked; one that

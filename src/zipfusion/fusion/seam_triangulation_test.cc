@@ -393,5 +393,83 @@ TEST(InsertPoints, AllocatesNothingIntoAReusedTriangulation) {
   EXPECT_GT(g_allocations.load() - before_cgal, 20);
 }
 
+// Points removed from two copies of a constrained triangulation, by CGAL's `remove` and by
+// remove_point: the same triangulation, constraint flags included. The points: every third of
+// those no constraint touches, interior ones and (through CGAL's removal) some on the hull.
+void expect_removal_as_cgals(const std::vector<Point>& points, const std::vector<std::pair<int, int>>& segments,
+                             RemovalScratch& scratch) {
+  BothWays both(points);
+  both.constrain_each(segments);
+  ASSERT_EQ(placed_edges(both.by_flips), placed_edges(both.by_cgal));
+  const long left_before = scratch.left_to_cgal;
+  int removed = 0, on_hull = 0;
+  for (size_t k = 0; k < points.size(); k += 3) {
+    if (both.by_cgal.are_there_incident_constraints(both.cgal_handle[k])) continue;
+    bool hull = false;
+    SeamTriangulation::Vertex_circulator w = both.by_cgal.incident_vertices(both.cgal_handle[k]), first = w;
+    do {
+      hull = hull || both.by_cgal.is_infinite(w);
+    } while (++w != first);
+    on_hull += hull;
+    ++removed;
+    both.by_cgal.remove(both.cgal_handle[k]);
+    remove_point(both.by_flips, both.flips_handle[k], scratch);
+    ASSERT_TRUE(both.by_flips.is_valid()) << "after point " << k;
+    ASSERT_EQ(placed_edges(both.by_flips), placed_edges(both.by_cgal)) << "after point " << k;
+  }
+  EXPECT_GT(removed - on_hull, 20);
+  EXPECT_EQ(scratch.left_to_cgal - left_before, on_hull);
+}
+
+TEST(RemovePoint, GivesCgalsTriangulation) {
+  RemovalScratch scratch;
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    std::mt19937 random(seed);
+    const std::vector<Point> points = jittered_grid(random);
+    expect_removal_as_cgals(points, random_segments(points, 30, true, random), scratch);
+  }
+}
+
+// On an integer grid four neighbours of a point lie on a circle, and many points on a line: the
+// hole's triangulation there comes from CGAL's perturbation of co-circular points, in both.
+TEST(RemovePoint, GivesCgalsTriangulationOnAnIntegerGrid) {
+  std::vector<Point> points;
+  for (int y = 0; y < 15; ++y) {
+    for (int x = 0; x < 15; ++x) points.emplace_back(x, y);
+  }
+  std::mt19937 random(2);
+  RemovalScratch scratch;
+  expect_removal_as_cgals(points, {}, scratch);
+  expect_removal_as_cgals(points, random_segments(points, 20, false, random), scratch);
+}
+
+TEST(RemovePoint, AllocatesNothingOnceItsScratchHasGrown) {
+  std::mt19937 random(9);
+  const std::vector<Point> points = jittered_grid(random);
+  RemovalScratch scratch;
+  auto allocations = [&](bool by_cgal) {
+    SeamTriangulation triangulation;
+    std::vector<Vertex> handle;
+    triangulate(points, triangulation, handle);
+    const long long before = g_allocations.load();
+    int removed = 0;
+    for (int y = 2; y < 18; y += 3) {
+      for (int x = 2; x < 18; x += 3, ++removed) {
+        if (by_cgal) {
+          triangulation.remove(handle[y * 20 + x]);
+        } else {
+          remove_point(triangulation, handle[y * 20 + x], scratch);
+        }
+      }
+    }
+    EXPECT_EQ(removed, 36);
+    return g_allocations.load() - before;
+  };
+  allocations(false);  // grows the scratch
+  EXPECT_EQ(allocations(false), 0);
+  EXPECT_EQ(scratch.left_to_cgal, 0);
+  EXPECT_GT(allocations(true), 36);  // CGAL's removal, for comparison: at least the hole's list each
+}
+
 }  // namespace
 }  // namespace zipfusion
