@@ -6,7 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <numbers>
-#include <opencv2/imgproc.hpp>
+#include <opencv2/core/types.hpp>
 
 #include "zipfusion/core/row_kernel.h"
 
@@ -308,20 +308,20 @@ cv::Rect start_score(const DepthMesh& mesh, int level, int pad, OwnershipScore& 
 void compute_border_distance(const DepthMesh& mesh, int level, int close_cells, OwnershipScore& out) {
   const cv::Rect box = start_score(mesh, level, close_cells + 1, out);
   if (box.empty()) return;
-  cv::Mat mask(box.height, box.width, CV_8UC1);
+  std::vector<std::uint8_t>& mask = out.border_mask;
+  mask.resize(static_cast<size_t>(box.width) * box.height);
   for (int y = 0; y < box.height; ++y) {
     const std::uint8_t* row = mesh.triangles.data() + (box.y + y) * mesh.width + box.x;
-    for (int x = 0; x < box.width; ++x) mask.at<std::uint8_t>(y, x) = row[x] ? 255 : 0;
+    std::uint8_t* mask_row = mask.data() + static_cast<size_t>(y) * box.width;
+    for (int x = 0; x < box.width; ++x) mask_row[x] = row[x] ? 255 : 0;
   }
-  if (close_cells > 0) {
-    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {2 * close_cells + 1, 2 * close_cells + 1});
-    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, kernel);
-  }
-  cv::Mat distance;
-  cv::distanceTransform(mask, distance, cv::DIST_L2, cv::DIST_MASK_3);
+  if (close_cells > 0) close_binary(mask.data(), mask.data(), box.width, box.height, close_cells, out.binary_image);
+  std::vector<float>& distance = out.border_distance;
+  distance.resize(mask.size());
+  chamfer_distance(mask.data(), distance.data(), box.width, box.height, out.binary_image);
   const float pixels_per_cell = static_cast<float>(1 << level);
   for (int y = 0; y < box.height; ++y) {
-    const float* d = distance.ptr<float>(y);
+    const float* d = distance.data() + static_cast<size_t>(y) * box.width;
     const int base = (box.y + y) * mesh.width + box.x;
     for (int x = 0; x < box.width; ++x) out.cell(box.x + x, box.y + y) = mesh.triangles[base + x] ? d[x] * pixels_per_cell : 0.0f;
   }
@@ -788,10 +788,9 @@ void compute_overlap_mask(const MeshView& a, const MeshView& b, float depth_tole
       if (z > 0 && may_see_surface(b, project_camera_point(b, rays.point(u, v, z)), depth_tolerance)) mask.cells[cell] = 255;
     }
   }
-  cv::Mat image(mesh.height, mesh.width, CV_8UC1, mask.cells.data());
   // Dilated by the reach of the finest level's window search (4 pixels) in this level's cells.
   const int reach = (4 + (1 << a.level) - 1) >> a.level;
-  cv::dilate(image, image, cv::getStructuringElement(cv::MORPH_RECT, {2 * reach + 1, 2 * reach + 1}));
+  dilate_binary(mask.cells.data(), mask.cells.data(), mesh.width, mesh.height, reach, mask.binary_image);
 }
 
 void downsample_mesh(const DepthMesh& fine, int level, DepthJump max_depth_jump, DepthMesh& coarse) {

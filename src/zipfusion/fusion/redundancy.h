@@ -32,6 +32,7 @@
 #include "zipfusion/core/geometry.h"
 #include "zipfusion/core/row_kernel.h"
 #include "zipfusion/depth/sdc_mesh.h"
+#include "zipfusion/fusion/binary_image.h"
 
 namespace zipfusion {
 
@@ -69,6 +70,10 @@ struct OwnershipScore {
   std::vector<float> padded_depth, row_sums, row_counts, smooth_depth, ray_x, area, smooth_area, area_sums, smooth_sums;
   std::vector<double> area_table, smooth_area_table, padded_columns, powers, results;
   std::vector<std::pair<int, int>> cell_spans;  // per row of the box, its cells with triangles [first, end)
+  // And compute_border_distance's: the closed mask of the box, its distances, the passes' buffers.
+  std::vector<std::uint8_t> border_mask;
+  std::vector<float> border_distance;
+  BinaryImageScratch binary_image;
 };
 
 //! Fills `out` with the border score of `mesh`, a view at `level`: the distance transform of its
@@ -273,6 +278,7 @@ struct OverlapMask {
   std::vector<std::uint8_t> cells;
   int width = 0;
   int level = 0;
+  BinaryImageScratch binary_image;  // not part of the mask: the dilation's buffers, reused
 
   //! Does the mask cover cell (u, v) of a view at `view_level` (≤ level)?
   bool covers_at(int u, int v, int view_level) const {
