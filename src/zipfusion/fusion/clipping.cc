@@ -1265,14 +1265,15 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
   // the point location walks a step or two. CGAL's range insertion sorts the points along a
   // Hilbert curve first, which cost more than it saved here (samba-4cam frame 0, one thread:
   // 6.4–7.1 ms against 5.8–6.2 ms for the insertion, the same triangulation). insert_points puts
-  // the hull in first, then a skeleton of the seam, then the rest. The triangulations are kept
-  // between seams and frames (clear_keeping_memory) for the blocks of their containers.
+  // the hull in first, then a skeleton of the seam, then the rest. The triangulation is kept
+  // between seams and frames (clear_keeping_memory), for the blocks of its containers, and
+  // swapped into the constrained one for the seam.
   PlainDelaunay& points_only = buffers.points_only;
   clear_keeping_memory(points_only);
   std::vector<Delaunay::Vertex_handle>& handle = buffers.handle;
   insert_points(points_only, points, handle, buffers.insertion);
   Delaunay& triangulation = buffers.triangulation;
-  triangulation.swap(points_only);  // points_only now holds the last seam's, to be cleared next time
+  triangulation.swap(points_only);
   // Every kept edge becomes a constraint (constrain). With the seam laid out at locally averaged
   // depth (the default; filtered depth laid out as measured is about as regular), about 90 % of
   // them are already edges of the triangulation and are only marked; the others are flipped into
@@ -1348,6 +1349,9 @@ void stitch_seam(const MeshView& a, const Eigen::Vector3f& centre_a, const MeshV
     // orients the whole seam consistently, slivers included (a 3-D normal test would not).
     seam.triangles.emplace_back(index[0], index[2], index[1]);
   }
+  // Back to points_only, so that one triangulation takes every seam's points, and its blocks grow
+  // to the largest seam once: taking turns, each would grow again to the largest of every other.
+  triangulation.swap(points_only);
 }
 
 }  // namespace zipfusion

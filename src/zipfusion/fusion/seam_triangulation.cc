@@ -317,20 +317,78 @@ bool is_ear(const SeamTriangulation& triangulation, const std::vector<Vertex>& p
   return true;
 }
 
-// The ears that cut the polygon of v's neighbours (s.link) down to a triangle, in turn, each as
-// its place in what is left of the polygon then, into s.ears; false, with nothing changed, where
-// some step finds none (a simple polygon always has one; this only guards).
-bool find_ears(const SeamTriangulation& triangulation, RemovalScratch& s) {
+// The ears to cut off the hole of v, in turn, each as its place in what is left of s.polygon
+// then, into s.ears. The polygon starts as v's neighbours (s.link). Inside the hull it is cut
+// down to a triangle. On the hull it is the chain of v's finite neighbours, w1 … wk counter-
+// clockwise, w1 and wk on the hull: ears are cut off between them (never at w1 or wk) until none
+// is left, and the chain must then turn right or run straight at every corner: it is the new
+// hull. (v itself may lie on an ear's new side, where the hull ran straight through it; it
+// cannot lie inside an ear, its finite faces spanning at most a straight angle.) False, with
+// nothing changed, where that fails (inside the hull a simple polygon always has an ear; this
+// only guards), or where no finite face would be left.
+bool find_ears(const SeamTriangulation& triangulation, bool on_hull, RemovalScratch& s) {
   s.polygon = s.link;
   s.ears.clear();
-  while (s.polygon.size() > 3) {
-    size_t k = 0;
-    while (k < s.polygon.size() && !is_ear(triangulation, s.polygon, k)) ++k;
-    if (k == s.polygon.size()) return false;
+  const size_t ends = on_hull ? 1 : 0;  // corners at each end that are never ears
+  while (s.polygon.size() >= (on_hull ? 3u : 4u)) {
+    size_t k = ends;
+    while (k + ends < s.polygon.size() && !is_ear(triangulation, s.polygon, k)) ++k;
+    if (k + ends == s.polygon.size()) break;
     s.ears.push_back(static_cast<int>(k));
     s.polygon.erase(s.polygon.begin() + static_cast<std::ptrdiff_t>(k));
   }
-  return true;
+  if (!on_hull) return s.polygon.size() == 3;
+  for (size_t k = 1; k + 1 < s.polygon.size(); ++k) {
+    if (triangulation.orientation(s.polygon[k - 1]->point(), s.polygon[k]->point(), s.polygon[k + 1]->point()) == CGAL::LEFT_TURN) {
+      return false;
+    }
+  }
+  // v's finite faces (k − 1) go, the ears come.
+  return triangulation.number_of_faces() + s.ears.size() > s.link.size() - 1;
+}
+
+// v is on the hull and its finite neighbours (what find_ears left of s.polygon) turn right or run straight at
+// every corner: they become the hull. Each finite face of v becomes an infinite face (v is
+// replaced by the infinite vertex, its neighbours stay), and v's two infinite faces go, their
+// neighbours beyond joined to the faces that took their place.
+void merge_into_infinite_vertex(SeamTriangulation& triangulation, Vertex v, std::vector<Face>& faces) {
+  SeamTriangulationData& tds = triangulation.tds();
+  const Vertex infinite = triangulation.infinite_vertex();
+  faces.clear();
+  SeamTriangulation::Face_circulator f = triangulation.incident_faces(v), first = f;
+  do {
+    faces.push_back(f);
+  } while (++f != first);
+  // Each infinite face of v: its neighbour beyond (across ∞ and its finite corner) and the finite
+  // face of v beside it (across v and that corner), with their indices of the edge to be joined.
+  struct End {
+    Face gone, beyond, inner;
+    int beyond_edge, inner_edge;
+    Vertex corner;
+  };
+  std::array<End, 2> ends;
+  int found = 0;
+  for (const Face face : faces) {
+    if (!triangulation.is_infinite(face)) continue;
+    assert(found < 2);
+    End& end = ends[found++];
+    const int at_v = face->index(v), at_infinite = face->index(infinite);
+    end = {face, face->neighbor(at_v), face->neighbor(at_infinite), triangulation.mirror_index(face, at_v),
+           triangulation.mirror_index(face, at_infinite), face->vertex(3 - at_v - at_infinite)};
+  }
+  assert(found == 2);
+  for (const Face face : faces) {
+    if (!triangulation.is_infinite(face)) face->set_vertex(face->index(v), infinite);
+  }
+  for (const End& end : ends) {
+    tds.set_adjacency(end.inner, end.inner_edge, end.beyond, end.beyond_edge);
+    end.inner->set_constraint(end.inner_edge, false);
+    if (end.corner->face() == end.gone) end.corner->set_face(end.inner);
+  }
+  infinite->set_face(ends[0].inner);
+  tds.delete_face(ends[0].gone);
+  tds.delete_face(ends[1].gone);
+  tds.delete_vertex(v);
 }
 
 }  // namespace
@@ -338,25 +396,31 @@ bool find_ears(const SeamTriangulation& triangulation, RemovalScratch& s) {
 void remove_point(SeamTriangulation& triangulation, Vertex v, RemovalScratch& s) {
   constexpr size_t kMostNeighbours = 64;  // the ears' search takes the square of the neighbours each
   s.link.clear();
-  bool to_cgal = triangulation.dimension() != 2;
+  bool to_cgal = triangulation.dimension() != 2, on_hull = false;
   if (!to_cgal) {
+    // The neighbours counter-clockwise; on the hull, from the one after the infinite vertex.
     SeamTriangulation::Vertex_circulator w = triangulation.incident_vertices(v), first = w;
     do {
-      to_cgal = triangulation.is_infinite(w) || s.link.size() == kMostNeighbours;
-      s.link.push_back(w);
-    } while (!to_cgal && ++w != first);
+      on_hull = on_hull || triangulation.is_infinite(w);
+    } while (!on_hull && ++w != first);
+    if (on_hull) first = ++w;
+    do {
+      if (!triangulation.is_infinite(w)) s.link.push_back(w);
+    } while (++w != first && s.link.size() <= kMostNeighbours);
+    to_cgal = s.link.size() > kMostNeighbours || !find_ears(triangulation, on_hull, s);
   }
-  if (to_cgal || !find_ears(triangulation, s)) {
+  if (to_cgal) {
     ++s.left_to_cgal;
     triangulation.remove(v);
     return;
   }
-  // The hole's edges: its border (the link's sides) and the ears' diagonals, to be tested once v
-  // is gone. Each ear is cut off by flipping v's edge to its tip: the ear becomes a face, and the
-  // face left to v spans the tip's two neighbours (for a while it may lie the wrong way round:
-  // nothing reads its geometry before v goes).
+  // The hole's edges: the link's sides and the ears' diagonals, to be tested once v is gone.
+  // Each ear is cut off by flipping v's edge to its tip: the ear becomes a face, and the face left
+  // to v spans the tip's two neighbours (for a while it may lie the wrong way round: nothing reads
+  // its geometry before v goes).
   s.created.clear();
-  for (size_t k = 0; k < s.link.size(); ++k) s.created.emplace_back(s.link[k], s.link[(k + 1) % s.link.size()]);
+  const size_t sides = on_hull ? s.link.size() - 1 : s.link.size();
+  for (size_t k = 0; k < sides; ++k) s.created.emplace_back(s.link[k], s.link[(k + 1) % s.link.size()]);
   s.polygon = s.link;
   for (const int ear : s.ears) {
     const size_t n = s.polygon.size(), k = static_cast<size_t>(ear);
@@ -368,10 +432,14 @@ void remove_point(SeamTriangulation& triangulation, Vertex v, RemovalScratch& s)
     s.created.emplace_back(s.polygon[(k + n - 1) % n], s.polygon[(k + 1) % n]);
     s.polygon.erase(s.polygon.begin() + ear);
   }
-  // v has three neighbours: one of its faces becomes their triangle, the other two go.
-  const Face kept = v->face();
-  triangulation.tds().remove_degree_3(v, kept);
-  for (int k = 0; k < 3; ++k) kept->set_constraint(k, kept->neighbor(k)->is_constrained(triangulation.mirror_index(kept, k)));
+  if (on_hull) {
+    merge_into_infinite_vertex(triangulation, v, s.faces);
+  } else {
+    // v has three neighbours: one of its faces becomes their triangle, the other two go.
+    const Face kept = v->face();
+    triangulation.tds().remove_degree_3(v, kept);
+    for (int k = 0; k < 3; ++k) kept->set_constraint(k, kept->neighbor(k)->is_constrained(triangulation.mirror_index(kept, k)));
+  }
   restore_delaunay(triangulation, s.created);
 }
 

@@ -87,6 +87,7 @@ struct RemovalScratch {
   std::vector<SeamTriangulation::Vertex_handle> polygon;  //!< the link as ears are cut off it
   std::vector<int> ears;  //!< the corners of the link cut off in turn, as places in `polygon` then
   std::vector<ConstraintScratch::VertexPair> created;  //!< the hole's edges, to be made Delaunay
+  std::vector<SeamTriangulation::Face_handle> faces;    //!< a point's faces, on the hull
   long left_to_cgal = 0;  //!< points removed by CGAL's `remove`, counted up
 };
 
@@ -94,10 +95,13 @@ struct RemovalScratch {
 //! constrained Delaunay: the triangulation CGAL's `remove(v)` makes (the hole's triangulation is
 //! unique, CGAL perturbing co-circular points symbolically in both). The hole is cut into ears by
 //! flips of v's edges until v has three neighbours, v goes with its three faces, and the hole's
-//! edges are then flipped until Delaunay (Lawson). Allocates nothing once `scratch` has grown,
-//! where CGAL's removal lists the hole's edges twice and its sub-holes. A point on the convex
-//! hull, of more than 64 neighbours, or in a triangulation of dimension below 2 goes to CGAL's
-//! `remove` (`scratch.left_to_cgal` counts those).
+//! edges are then flipped until Delaunay (Lawson). On the convex hull, ears are cut off the chain
+//! of v's finite neighbours until it turns right at every corner, and v's faces then become the
+//! infinite faces of the new hull. Allocates nothing once `scratch` has grown, where CGAL's
+//! removal lists the hole's edges twice and its sub-holes. A point of more than 64 neighbours,
+//! one on the hull whose chain keeps a left turn (an ear blocked: not seen yet) or whose removal
+//! leaves no finite face, or one in a triangulation of dimension below 2 goes to CGAL's `remove`
+//! (`scratch.left_to_cgal` counts those).
 void remove_point(SeamTriangulation& triangulation, SeamTriangulation::Vertex_handle v, RemovalScratch& scratch);
 
 //! Makes the segment between two vertices a constrained edge of the triangulation, which stays

@@ -207,24 +207,25 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     overlaps[i] = overlap_reaches(views[a][levels], views[b][levels], d_r, options.min_overlap_share) ||
                   overlap_reaches(views[b][levels], views[a][levels], d_r, options.min_overlap_share);
   }, options.num_threads);
-  result.pairs.reserve(candidates.size());
+  std::vector<std::pair<int, int>>& pairs = scratch.pairs;
+  pairs.clear();
   for (size_t i = 0; i < candidates.size(); ++i) {
-    if (overlaps[i]) result.pairs.push_back(candidates[i]);
+    if (overlaps[i]) pairs.push_back(candidates[i]);
   }
-  result.stats.pairs = static_cast<int>(result.pairs.size());
-  scratch.masks.resize(result.pairs.size());
-  parallel_for(0, static_cast<int>(result.pairs.size()), [&](int i) {
-    const auto [a, b] = result.pairs[i];
+  result.stats.pairs = static_cast<int>(pairs.size());
+  scratch.masks.resize(pairs.size());
+  parallel_for(0, static_cast<int>(pairs.size()), [&](int i) {
+    const auto [a, b] = pairs[i];
     compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
     compute_overlap_mask(views[b][levels], views[a][levels], 2 * d_r, scratch.masks[i].second);
   }, options.num_threads);
   PairRounds& rounds = scratch.rounds;
-  schedule_pairs(result.pairs, rounds);
+  schedule_pairs(pairs, rounds);
   // Clipping marks taken triangles with their round in a byte (greedy colouring needs at most
   // 2n − 3 rounds for n cameras).
   if (rounds.count() > 254) throw InvalidInput("zipper: more than 254 rounds of camera pairs (too many cameras)");
   // Stitching numbers the seams from 1 in 16 bits (SeamPixelMap).
-  if (result.pairs.size() >= SeamPixelMap::kManySeams) throw InvalidInput("zipper: more than 65 534 overlapping camera pairs");
+  if (pairs.size() >= SeamPixelMap::kManySeams) throw InvalidInput("zipper: more than 65 534 overlapping camera pairs");
   result.stats.overlap_ms = ms_since(t);
 
   // Coarse to fine FRBR.
@@ -233,7 +234,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // go; counting the bit matrices before and after took a quarter of a millisecond on one thread).
   std::vector<int>&propagated_to_full = scratch.propagated_to_full, &removed_at_full = scratch.removed_at_full;
   propagated_to_full.assign(camera_count, 0);
-  removed_at_full.assign(result.pairs.size(), 0);
+  removed_at_full.assign(pairs.size(), 0);
   // Each finer level starts its frontier from its boundary; the coarsest level's sweeps (whole
   // first sweeps) only add to it, onto the previous frame's, which then grew it again.
   for (int c : active) scratch.cameras[c].frbr.frontier.clear();
@@ -251,7 +252,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
       const std::span<const int> round = rounds.round(r);
       parallel_for(0, static_cast<int>(round.size()), [&](int i) {
         const int pair_index = round[i];
-        const auto [a, b] = result.pairs[pair_index];
+        const auto [a, b] = pairs[pair_index];
         const auto& masks = scratch.masks[pair_index];
         const FrbrResult removed = remove_redundant_boundaries(views[a][level], views[b][level], distance, level == levels, masks.first,
                                                                masks.second, scratch.cameras[a].frbr, scratch.cameras[b].frbr);
@@ -283,16 +284,16 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   // later rounds took more counts those later-taken triangles as kept, as they were for it.
   // Per pair; the scratch's lists only grow, so that a camera's pairs that come back after a
   // frame set without it find their arrays.
-  if (scratch.taken.size() < result.pairs.size()) scratch.taken.resize(result.pairs.size());
-  if (scratch.stitch.size() < result.pairs.size()) scratch.stitch.resize(result.pairs.size());
-  const std::span<TakenSeam> taken(scratch.taken.data(), result.pairs.size());
+  if (scratch.taken.size() < pairs.size()) scratch.taken.resize(pairs.size());
+  if (scratch.stitch.size() < pairs.size()) scratch.stitch.resize(pairs.size());
+  const std::span<TakenSeam> taken(scratch.taken.data(), pairs.size());
   for (TakenSeam& seam : taken) seam.clear();  // the marks' clearing below reads them, even if taking fails half way
   // The seams mark the scratch's cameras (the round that took each triangle, the seam of each
   // pixel); the next call reads those marks as its own seams', so they are cleared after the
   // stitching, and also when an exception leaves it half done.
   auto clear_seam_marks = [&] {
     for (size_t i = 0; i < taken.size(); ++i) {
-      const auto [a, b] = result.pairs[i];
+      const auto [a, b] = pairs[i];
       for (int id : taken[i].taken_a) scratch.cameras[a].taken_round[id] = 0;
       for (int id : taken[i].taken_b) scratch.cameras[b].taken_round[id] = 0;
       for (const PixelVertex& v : taken[i].seam.vertices) {
@@ -307,7 +308,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     const std::span<const int> round = rounds.round(r);
     parallel_for(0, static_cast<int>(round.size()), [&](int i) {
       const int pair_index = round[i];
-      const auto [a, b] = result.pairs[pair_index];
+      const auto [a, b] = pairs[pair_index];
       take_seam(views[a][0], views[b][0], seam_options, scratch.masks[pair_index].first, scratch.masks[pair_index].second,
                 scratch.cameras[a].seam, scratch.cameras[b].seam, taken[pair_index]);
       for (int id : taken[pair_index].taken_a) scratch.cameras[a].taken_round[id] = static_cast<std::uint8_t>(r + 1);
@@ -425,7 +426,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
   std::vector<Clock::time_point>& stitched_at = scratch.stitched_at;
   stitched_at.assign(taken.size(), taken_at);
   auto stitch = [&](int i) {
-    const auto [a, b] = result.pairs[i];
+    const auto [a, b] = pairs[i];
     auto pixel_map = [&](int c) { return SeamPixelMap{scratch.cameras[c].seam_at_pixel.data(), scratch.cameras[c].seam_vertex_at_pixel.data()}; };
     stitch_seam(views[a][0], cameras[a].model->world_from_depth.translation().cast<float>(), views[b][0],
                 cameras[b].model->world_from_depth.translation().cast<float>(), seam_options,

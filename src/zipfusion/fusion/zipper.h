@@ -83,7 +83,6 @@ struct ZipperStats {
 struct ZipperResult {
   TriangleMesh mesh;
   ZipperStats stats;
-  std::vector<std::pair<int, int>> pairs;  // the overlapping pairs found
 };
 
 //! Camera pairs grouped into rounds in which no camera appears twice, as CSR of the pairs'
@@ -118,7 +117,7 @@ struct ZipperScratch {
     std::vector<std::uint8_t> boundary_rows;  // collect_boundary_triangles' scratch
   };
   std::vector<Camera> cameras;
-  // Per overlapping pair (in ZipperResult::pairs order): where the second camera sees the first's
+  // Per overlapping pair (in `pairs` order): where the second camera sees the first's
   // coarsest level, and the reverse.
   std::vector<std::pair<OverlapMask, OverlapMask>> masks;
   std::vector<TakenSeam> taken;       // clipping: per pair, its seam between taking and stitching
@@ -131,6 +130,7 @@ struct ZipperScratch {
   std::vector<std::vector<MeshView>> views;
   std::vector<std::pair<int, int>> candidates;
   std::vector<char> overlaps;
+  std::vector<std::pair<int, int>> pairs;  // the overlapping ones, as found by the last call
   PairRounds rounds;
   std::vector<int> propagated_to_full, removed_at_full;
   std::vector<int> vertex_count, triangle_count, vertex_offset, triangle_offset;

@@ -1,8 +1,7 @@
 // Steady state allocates nothing per frame set (issue 6): every allocation in this test binary is
 // counted by replacing the global operator new, and a FrameReconstructor runs the same samba-4cam
-// frame sets twice: the first pass grows its buffers, the second must not allocate (separate
-// meshes) or must allocate nothing the size of an image (zipper: CGAL's Delaunay triangulation
-// and OpenCV's morphology allocate inside every call; docs/design.md).
+// frame sets again after passes that grow its buffers: that pass must not allocate
+// (docs/design.md, *The frame pipeline and threads*).
 
 #include <gtest/gtest.h>
 
@@ -29,9 +28,9 @@ struct Allocations {
   size_t largest = 0;
 };
 
-// What reconstructing `frames` once more allocates, after a first pass over the same frame sets.
-// Meshes go back to the reconstructor after each frame set, as the pipeline's sink does.
-Allocations steady_state_allocations(const std::vector<FrameSet>& frames, const ReconstructOptions& options) {
+// What reconstructing `frames` once more allocates, after `warm_up` passes over the same frame
+// sets. Meshes go back to the reconstructor after each frame set, as the pipeline's sink does.
+Allocations steady_state_allocations(const std::vector<FrameSet>& frames, const ReconstructOptions& options, int warm_up = 1) {
   FrameReconstructor reconstructor(read_rig(kSamba / "ground_truth" / "rig.json"), options);
   auto pass = [&] {
     for (const FrameSet& frame : frames) {
@@ -40,7 +39,7 @@ Allocations steady_state_allocations(const std::vector<FrameSet>& frames, const 
       reconstructor.recycle(std::move(result.mesh));
     }
   };
-  pass();
+  for (int k = 0; k < warm_up; ++k) pass();
   const long long count = g_allocations.load(), bytes = g_bytes.load();
   g_largest = 0;
   pass();
@@ -88,23 +87,23 @@ TEST_F(SteadyState, SeparateMeshesAllocateNothing) {
   }
 }
 
-// The zipper's seams are triangulated by CGAL, whose triangulation allocates when it is made and
-// as it grows, and whose insertion of a point outside the hull and removal of a vertex allocate
-// lists; OpenCV's dilation and erosion allocate their filter objects. None of that is the size of
-// an image: a buffer that is (640×480 floats are 1.2 MB) must be kept in a scratch between
-// frames. The count (about 800–850 a frame set; 4 700–6 400 before `constrain` replaced CGAL's
-// constraint insertion and the seams' arrays moved into the scratch) is bounded too, so that the
-// zipper's own arrays stay in its scratch.
-TEST_F(SteadyState, ZipperAllocatesNoImageSizedBuffer) {
-  constexpr size_t kLargestAllowed = 256 * 1024;
-  constexpr long long kMostPerFrameSet = 1200;
+// The zipper keeps its arrays, its seams' CGAL triangulations (clear_keeping_memory) and its
+// masks' buffers (binary_image.h) between frame sets, and neither inserts seam points, constrains
+// kept edges nor removes crease points through CGAL's allocating calls (insert_points, constrain,
+// remove_point) but in rare cases those leave to CGAL, none in these frame sets. Before 2026-12-07
+// it allocated 800–850 times a frame set (CGAL's lists and blocks, OpenCV's filter objects), and
+// 4 700–6 400 times before 2026-12-06. After one warm-up pass a buffer can still grow once: which
+// of a camera's pairs first fills its FRBR worklist depends on the frame set before (one 32 kB
+// allocation in three frame sets with the filter, and after a second warm-up pass none).
+TEST_F(SteadyState, ZipperAllocatesNothing) {
   for (bool bilateral : {false, true}) {
-    const Allocations a = steady_state_allocations(frames_, {.mode = ReconstructMode::kZipper, .bilateral = bilateral});
-    EXPECT_LT(a.largest, kLargestAllowed) << "bilateral " << bilateral;
-    EXPECT_LT(a.count, kMostPerFrameSet * static_cast<long long>(frames_.size())) << "bilateral " << bilateral;
-    std::printf("zipper, bilateral %d: %.0f allocations and %.0f bytes a frame set, the largest %zu bytes\n", bilateral,
-                static_cast<double>(a.count) / static_cast<double>(frames_.size()), static_cast<double>(a.bytes) / static_cast<double>(frames_.size()),
-                a.largest);
+    const ReconstructOptions options{.mode = ReconstructMode::kZipper, .bilateral = bilateral};
+    const Allocations once = steady_state_allocations(frames_, options, 1);
+    EXPECT_LE(once.count, 3) << "bilateral " << bilateral << ", after one warm-up pass";
+    const Allocations a = steady_state_allocations(frames_, options, 2);
+    EXPECT_EQ(a.count, 0) << "bilateral " << bilateral << ": " << a.bytes << " bytes, largest " << a.largest;
+    std::printf("zipper, bilateral %d: %lld allocations in %zu frame sets after one warm-up pass, %lld after two\n", bilateral, once.count,
+                frames_.size(), a.count);
   }
 }
 
