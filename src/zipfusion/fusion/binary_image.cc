@@ -7,57 +7,36 @@
 namespace zipfusion {
 namespace {
 
-// Along each row: out = 255 where a pixel within `radius` columns (inside the row) is `wanted`
-// (nonzero, or zero), else 0. Two passes, each counting the columns since the last wanted pixel.
-void spread_rows(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, bool want_nonzero) {
-  const int far = width + radius + 1;
-  for (int y = 0; y < height; ++y) {
-    const std::uint8_t* row = in + static_cast<std::ptrdiff_t>(y) * width;
-    std::uint8_t* row_out = out + static_cast<std::ptrdiff_t>(y) * width;
-    int gap = far;
-    for (int x = 0; x < width; ++x) {
-      gap = ((row[x] != 0) == want_nonzero) ? 0 : gap + 1;
-      row_out[x] = gap <= radius ? 255 : 0;
-    }
-    gap = far;
-    for (int x = width - 1; x >= 0; --x) {
-      gap = ((row[x] != 0) == want_nonzero) ? 0 : gap + 1;
-      if (gap <= radius) row_out[x] = 255;
-    }
-  }
-}
-
-// Along each column, the same for pixels equal to 255 in `in`: a pass down, then up, a row at a
-// time, each column's count of rows since its last such pixel in `gaps`.
-void spread_columns(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, std::vector<std::uint16_t>& gaps) {
-  const std::uint16_t far = static_cast<std::uint16_t>(std::min(radius + 1, 65535));
-  gaps.assign(static_cast<size_t>(width), far);
-  for (int y = 0; y < height; ++y) {
-    const std::uint8_t* row = in + static_cast<std::ptrdiff_t>(y) * width;
-    std::uint8_t* row_out = out + static_cast<std::ptrdiff_t>(y) * width;
-    for (int x = 0; x < width; ++x) {
-      gaps[x] = row[x] ? 0 : static_cast<std::uint16_t>(std::min<int>(gaps[x] + 1, far));
-      row_out[x] = gaps[x] <= radius ? 255 : 0;
-    }
-  }
-  std::fill(gaps.begin(), gaps.end(), far);
-  for (int y = height - 1; y >= 0; --y) {
-    const std::uint8_t* row = in + static_cast<std::ptrdiff_t>(y) * width;
-    std::uint8_t* row_out = out + static_cast<std::ptrdiff_t>(y) * width;
-    for (int x = 0; x < width; ++x) {
-      gaps[x] = row[x] ? 0 : static_cast<std::uint16_t>(std::min<int>(gaps[x] + 1, far));
-      row_out[x] |= gaps[x] <= radius ? 255 : 0;
-    }
-  }
-}
-
-// The square's test is separable: a pixel wanted within the square lies within `radius` columns
-// of a pixel of its row that is within `radius` rows of it.
-void spread(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, bool want_nonzero, BinaryImageScratch& s) {
+// 255 where a pixel of `in` within `radius` columns and `radius` rows (inside the image) is
+// nonzero (dilation: the OR of the window's pixels) or, for erosion, where every such pixel is
+// (the AND), else 0. Separable: along the rows into s.rows, each row first copied as 0 or 255
+// between `radius` neutral pixels (0 for the OR, 255 for the AND, so that pixels outside do not
+// count), then along the columns. A radius of a few pixels takes 2·radius+1 byte-wise ORs or
+// ANDs per pixel and pass, over whole rows: they vectorise.
+template <bool kDilate>
+void spread(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, BinaryImageScratch& s) {
   if (width <= 0 || height <= 0) return;
-  s.rows.resize(static_cast<size_t>(width) * height);
-  spread_rows(in, s.rows.data(), width, height, radius, want_nonzero);
-  spread_columns(s.rows.data(), out, width, height, radius, s.gaps);
+  const std::uint8_t neutral = kDilate ? 0 : 255;
+  auto combine = [](std::uint8_t* to, const std::uint8_t* from, int n) {
+    for (int x = 0; x < n; ++x) to[x] = kDilate ? (to[x] | from[x]) : (to[x] & from[x]);
+  };
+  const size_t row_length = static_cast<size_t>(width);
+  s.rows.resize(row_length * height);
+  s.padded.assign(row_length + 2 * static_cast<size_t>(radius), neutral);
+  std::uint8_t* padded = s.padded.data() + radius;
+  for (int y = 0; y < height; ++y) {
+    const std::uint8_t* row = in + y * row_length;
+    for (int x = 0; x < width; ++x) padded[x] = row[x] ? 255 : 0;
+    std::uint8_t* spread_row = s.rows.data() + y * row_length;
+    std::copy(padded - radius, padded - radius + width, spread_row);
+    for (int d = -radius + 1; d <= radius; ++d) combine(spread_row, padded + d, width);
+  }
+  for (int y = 0; y < height; ++y) {
+    const int first = std::max(0, y - radius), last = std::min(height - 1, y + radius);
+    std::uint8_t* out_row = out + y * row_length;
+    std::copy(s.rows.data() + first * row_length, s.rows.data() + (first + 1) * row_length, out_row);
+    for (int v = first + 1; v <= last; ++v) combine(out_row, s.rows.data() + v * row_length, width);
+  }
 }
 
 // OpenCV's fixed point for the chamfer distances: 16 fractional bits. The border holds kFar
@@ -70,12 +49,11 @@ std::uint32_t to_fixed(float x) { return static_cast<std::uint32_t>(std::lround(
 }  // namespace
 
 void dilate_binary(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, BinaryImageScratch& scratch) {
-  spread(in, out, width, height, radius, true, scratch);
+  spread<true>(in, out, width, height, radius, scratch);
 }
 
 void erode_binary(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, BinaryImageScratch& scratch) {
-  spread(in, out, width, height, radius, false, scratch);
-  for (size_t k = 0, n = static_cast<size_t>(width) * height; k < n; ++k) out[k] = 255 - out[k];
+  spread<false>(in, out, width, height, radius, scratch);
 }
 
 void close_binary(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, BinaryImageScratch& scratch) {

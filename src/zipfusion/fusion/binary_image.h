@@ -13,8 +13,7 @@ namespace zipfusion {
 
 //! Buffers the functions below reuse from one call to the next.
 struct BinaryImageScratch {
-  std::vector<std::uint8_t> rows, closed;
-  std::vector<std::uint16_t> gaps;
+  std::vector<std::uint8_t> rows, padded, closed;
   std::vector<std::uint32_t> distances;
 };
 

@@ -248,13 +248,13 @@ void free_in_block_order(Slots& slots) {
 // chain, with the kernel's exact orientation: collinear points and repeated ones are no corners);
 // empty when the points all lie on one line.
 void find_hull(const std::vector<SeamPoint>& points, InsertionScratch& s) {
-  std::vector<int>& order = s.by_position;
+  std::vector<InsertionScratch::Place>& places = s.by_position;
   std::vector<int>& hull = s.hull;
   hull.clear();
-  order.resize(points.size());
-  for (size_t k = 0; k < points.size(); ++k) order[k] = static_cast<int>(k);
-  std::sort(order.begin(), order.end(), [&](int k, int l) {
-    return points[k].first < points[l].first || (points[k].first == points[l].first && k < l);
+  places.resize(points.size());
+  for (size_t k = 0; k < points.size(); ++k) places[k] = {points[k].first.x(), points[k].first.y(), static_cast<int>(k)};
+  std::sort(places.begin(), places.end(), [](const InsertionScratch::Place& p, const InsertionScratch::Place& q) {
+    return p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.index < q.index)));
   });
   auto turns_left = [&](int a, int b, int c) {
     return CGAL::orientation(points[a].first, points[b].first, points[c].first) == CGAL::LEFT_TURN;
@@ -263,9 +263,9 @@ void find_hull(const std::vector<SeamPoint>& points, InsertionScratch& s) {
     while (hull.size() >= keep + 2 && !turns_left(hull[hull.size() - 2], hull.back(), k)) hull.pop_back();
     hull.push_back(k);
   };
-  for (const int k : order) extend(k, 0);  // the lower chain, left to right
+  for (const InsertionScratch::Place& p : places) extend(p.index, 0);  // the lower chain, left to right
   const size_t lower = hull.size() - 1;
-  for (auto it = order.rbegin() + 1; it != order.rend(); ++it) extend(*it, lower);  // the upper, back
+  for (auto it = places.rbegin() + 1; it != places.rend(); ++it) extend(it->index, lower);  // the upper, back
   hull.pop_back();  // the first point again
   if (hull.size() < 3) hull.clear();
 }
@@ -281,6 +281,7 @@ std::array<Vertex, 3> start_with_triangle(SeamTriangulationBase& triangulation, 
   va->set_point(a);
   vb->set_point(b);
   vc->set_point(c);
+  tds.set_dimension(2);
   const Face f = tds.create_face(va, vb, vc);
   // Beyond each edge of f, the infinite face with that edge the other way round.
   const Face beyond_a = tds.create_face(vc, vb, infinite), beyond_b = tds.create_face(va, vc, infinite),
@@ -295,7 +296,6 @@ std::array<Vertex, 3> start_with_triangle(SeamTriangulationBase& triangulation, 
   vb->set_face(f);
   vc->set_face(f);
   infinite->set_face(beyond_a);
-  tds.set_dimension(2);
   return {va, vb, vc};
 }
 
@@ -425,7 +425,7 @@ void remove_point(SeamTriangulation& triangulation, Vertex v, RemovalScratch& s)
   for (const int ear : s.ears) {
     const size_t n = s.polygon.size(), k = static_cast<size_t>(ear);
     Face f;
-    int i;
+    int i = 0;
     [[maybe_unused]] const bool is_edge = triangulation.is_edge(v, s.polygon[k], f, i);
     assert(is_edge);
     triangulation.flip(f, i);

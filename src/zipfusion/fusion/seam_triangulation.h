@@ -54,7 +54,11 @@ void clear_keeping_memory(SeamTriangulationBase& triangulation);
 
 //! Work space of `insert_points`, reused across calls.
 struct InsertionScratch {
-  std::vector<int> by_position;  //!< the points' indices in lexicographic order of their points
+  struct Place {
+    double x, y;
+    int index;
+  };
+  std::vector<Place> by_position;  //!< the points in lexicographic order, with their indices
   std::vector<int> hull;         //!< the convex hull's corners, counter-clockwise
 };
 
