@@ -229,24 +229,32 @@ TEST(Constrain, MatchesCgalOnAnIntegerGrid) {
   }
 }
 
+// What `change(triangulation, handle)` allocates, on a triangulation of `points` made first.
+template <typename Change>
+long long allocations_changing(const std::vector<Point>& points, Change&& change) {
+  SeamTriangulation triangulation;
+  std::vector<Vertex> handle;
+  triangulate(points, triangulation, handle);
+  const long long before = g_allocations.load();
+  change(triangulation, handle);
+  return g_allocations.load() - before;
+}
+
 TEST(Constrain, AllocatesNothingOnceItsScratchHasGrown) {
   std::mt19937 random(7);
   const std::vector<Point> points = jittered_grid(random);
   const std::vector<std::pair<int, int>> segments = random_segments(points, 40, false, random);
   ConstraintScratch scratch;
   auto allocations = [&](bool by_cgal) {
-    SeamTriangulation triangulation;
-    std::vector<Vertex> handle;
-    triangulate(points, triangulation, handle);
-    const long long before = g_allocations.load();
-    for (const auto& [i, j] : segments) {
-      if (by_cgal) {
-        triangulation.insert_constraint(handle[i], handle[j]);
-      } else {
-        constrain(triangulation, handle[i], handle[j], scratch);
+    return allocations_changing(points, [&](SeamTriangulation& triangulation, const std::vector<Vertex>& handle) {
+      for (const auto& [i, j] : segments) {
+        if (by_cgal) {
+          triangulation.insert_constraint(handle[i], handle[j]);
+        } else {
+          constrain(triangulation, handle[i], handle[j], scratch);
+        }
       }
-    }
-    return g_allocations.load() - before;
+    });
   };
   allocations(false);  // grows the scratch
   EXPECT_EQ(allocations(false), 0);
@@ -455,37 +463,28 @@ TEST(RemovePoint, GivesCgalsTriangulationOnAnIntegerGrid) {
 TEST(RemovePoint, AllocatesNothingOnceItsScratchHasGrown) {
   std::mt19937 random(9);
   const std::vector<Point> points = jittered_grid(random);
+  // Points inside, every third of every third row, then on the hull, of the left column.
+  std::vector<int> removed;
+  for (int y = 2; y < 18; y += 3) {
+    for (int x = 2; x < 18; x += 3) removed.push_back(y * 20 + x);
+  }
+  for (int y = 2; y < 18; y += 4) removed.push_back(y * 20);
   RemovalScratch scratch;
   auto allocations = [&](bool by_cgal) {
-    SeamTriangulation triangulation;
-    std::vector<Vertex> handle;
-    triangulate(points, triangulation, handle);
-    const long long before = g_allocations.load();
-    int removed = 0;
-    for (int y = 2; y < 18; y += 3) {
-      for (int x = 2; x < 18; x += 3, ++removed) {
+    return allocations_changing(points, [&](SeamTriangulation& triangulation, const std::vector<Vertex>& handle) {
+      for (const int k : removed) {
         if (by_cgal) {
-          triangulation.remove(handle[y * 20 + x]);
+          triangulation.remove(handle[k]);
         } else {
-          remove_point(triangulation, handle[y * 20 + x], scratch);
+          remove_point(triangulation, handle[k], scratch);
         }
       }
-    }
-    // Then points on the hull, of the left column.
-    for (int y = 2; y < 18; y += 4, ++removed) {
-      if (by_cgal) {
-        triangulation.remove(handle[y * 20]);
-      } else {
-        remove_point(triangulation, handle[y * 20], scratch);
-      }
-    }
-    EXPECT_EQ(removed, 40);
-    return g_allocations.load() - before;
+    });
   };
   allocations(false);  // grows the scratch
   EXPECT_EQ(allocations(false), 0);
   EXPECT_EQ(scratch.left_to_cgal, 0);
-  EXPECT_GT(allocations(true), 40);  // CGAL's removal, for comparison: at least the hole's list each
+  EXPECT_GT(allocations(true), static_cast<long long>(removed.size()));  // CGAL's removal: at least the hole's list each
 }
 
 }  // namespace
