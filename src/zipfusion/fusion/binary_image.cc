@@ -1,6 +1,7 @@
 #include "zipfusion/fusion/binary_image.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstddef>
 
@@ -15,6 +16,7 @@ namespace {
 // ANDs per pixel and pass, over whole rows: they vectorise.
 template <bool kDilate>
 void spread(const std::uint8_t* in, std::uint8_t* out, int width, int height, int radius, BinaryImageScratch& s) {
+  assert(radius >= 0);
   if (width <= 0 || height <= 0) return;
   const std::uint8_t neutral = kDilate ? 0 : 255;
   auto combine = [](std::uint8_t* to, const std::uint8_t* from, int n) {

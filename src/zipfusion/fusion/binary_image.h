@@ -1,7 +1,8 @@
 #pragma once
-//! Dilation, closing and the chamfer distance transform of binary images (0 or not), as OpenCV's
-//! cv::dilate, cv::morphologyEx(MORPH_CLOSE) with a square kernel, and cv::distanceTransform
-//! (DIST_L2, DIST_MASK_3) compute them, to the bit, without allocating once their scratch has
+//! Dilation, closing and the chamfer distance transform of binary images, as OpenCV's cv::dilate,
+//! cv::morphologyEx(MORPH_CLOSE) with a square kernel, and cv::distanceTransform (DIST_L2,
+//! DIST_MASK_3) compute them for images of 0 and 255 and a radius of at least 1, to the bit (other
+//! nonzero values are taken as 255, and a radius of 0 copies the image so), without allocating once their scratch has
 //! grown: OpenCV's public API builds its filter objects, kernels and buffers at every call (88 to
 //! 192 allocations a frame set in the zipper). Pixels outside the image do not count, as with
 //! OpenCV's default border for morphology. Per-pixel passes over rows, as plain loops.

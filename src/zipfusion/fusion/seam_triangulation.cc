@@ -251,6 +251,7 @@ void find_hull(const std::vector<SeamPoint>& points, InsertionScratch& s) {
   std::vector<InsertionScratch::Place>& places = s.by_position;
   std::vector<int>& hull = s.hull;
   hull.clear();
+  if (points.size() < 3) return;
   places.resize(points.size());
   for (size_t k = 0; k < points.size(); ++k) places[k] = {points[k].first.x(), points[k].first.y(), static_cast<int>(k)};
   std::sort(places.begin(), places.end(), [](const InsertionScratch::Place& p, const InsertionScratch::Place& q) {
@@ -377,8 +378,12 @@ void merge_into_infinite_vertex(SeamTriangulation& triangulation, Vertex v, std:
            triangulation.mirror_index(face, at_infinite), face->vertex(3 - at_v - at_infinite)};
   }
   assert(found == 2);
+  // The faces that become infinite take a new face's info, as those CGAL's removal makes: the
+  // seam reads an infinite face's as never output (clipping.cc).
   for (const Face face : faces) {
-    if (!triangulation.is_infinite(face)) face->set_vertex(face->index(v), infinite);
+    if (triangulation.is_infinite(face)) continue;
+    face->set_vertex(face->index(v), infinite);
+    face->info() = SeamFaceInfo{};
   }
   for (const End& end : ends) {
     tds.set_adjacency(end.inner, end.inner_edge, end.beyond, end.beyond_edge);

@@ -335,6 +335,19 @@ TEST(InsertPoints, GivesCgalsDelaunayTriangulationWithTheLowestIndexAtEachPlace)
   }
 }
 
+TEST(InsertPoints, TakesFewerThanThreePoints) {
+  const std::vector<Point> points{{0.5, 0.25}, {0.5, 0.25}, {2, 1}};
+  for (size_t n = 0; n <= 3; ++n) {
+    SeamPointTriangulation triangulation;
+    std::vector<SeamPointTriangulation::Vertex_handle> handle;
+    InsertionScratch scratch;
+    insert_points(triangulation, numbered({points.begin(), points.begin() + static_cast<std::ptrdiff_t>(n)}), handle, scratch);
+    EXPECT_TRUE(triangulation.is_valid());
+    EXPECT_EQ(triangulation.number_of_vertices(), n < 2 ? n : n - 1) << n << " points";
+    EXPECT_EQ(triangulation.dimension(), n == 0 ? -1 : n < 3 ? 0 : 1) << n << " points";
+  }
+}
+
 TEST(InsertPoints, PointsOnOneLineAreInsertedByCgal) {
   std::vector<Point> points;
   for (int k = 0; k < 10; ++k) points.emplace_back(0.5 * k, 0.25 * k);
@@ -378,6 +391,41 @@ TEST(ClearKeepingMemory, ReusedTriangulationLaysOutFacesAsANewOne) {
   }
 }
 
+// The cycle each seam goes through in clipping.cc: points into the kept plain triangulation,
+// swapped into the constrained one, kept edges constrained, points removed, swapped back. A
+// triangulation reused through it gives the faces in the order a new one gives.
+TEST(ClearKeepingMemory, ReusedThroughTheSeamsCycleAsANewOne) {
+  std::mt19937 random(8);
+  std::vector<std::vector<Point>> seams;
+  for (int k = 0; k < 4; ++k) {
+    seams.push_back(jittered_grid(random));
+    seams.back().resize(400 - 90 * (k % 2));  // a smaller seam, then a larger one again
+  }
+  auto seam_cycle = [&](SeamPointTriangulation& points_only, const std::vector<Point>& points, std::mt19937& segments_random) {
+    std::vector<SeamPointTriangulation::Vertex_handle> handle;
+    InsertionScratch insertion;
+    ConstraintScratch constraints;
+    RemovalScratch removal;
+    clear_keeping_memory(points_only);
+    insert_points(points_only, numbered(points), handle, insertion);
+    SeamTriangulation triangulation;
+    triangulation.swap(points_only);
+    for (const auto& [i, j] : random_segments(points, 25, true, segments_random)) constrain(triangulation, handle[i], handle[j], constraints);
+    for (size_t k = 5; k < points.size(); k += 11) {
+      if (!triangulation.are_there_incident_constraints(handle[k])) remove_point(triangulation, handle[k], removal);
+    }
+    std::vector<std::array<int, 3>> faces = faces_in_memory_order(triangulation);
+    triangulation.swap(points_only);
+    return faces;
+  };
+  SeamPointTriangulation reused;
+  for (const std::vector<Point>& points : seams) {
+    std::mt19937 same_segments(1), again(1);
+    SeamPointTriangulation fresh;
+    EXPECT_EQ(seam_cycle(reused, points, same_segments), seam_cycle(fresh, points, again)) << points.size() << " points";
+  }
+}
+
 TEST(InsertPoints, AllocatesNothingIntoAReusedTriangulation) {
   std::mt19937 random(3);
   const std::vector<SeamPoint> points = numbered(jittered_grid(random));
@@ -412,6 +460,17 @@ void expect_removal_as_cgals(const std::vector<Point>& points, const std::vector
   ASSERT_EQ(placed_edges(both.by_flips), placed_edges(both.by_cgal));
   const long left_before = scratch.left_to_cgal;
   int removed = 0, on_hull = 0;
+  // Every finite face output, as the seam marks faces: an infinite face must never read so (the
+  // faces remove_point turns infinite on the hull were finite ones).
+  for (auto f = both.by_flips.finite_faces_begin(); f != both.by_flips.finite_faces_end(); ++f) f->info().output = true;
+  auto infinite_faces_output = [&] {
+    int count = 0;
+    SeamTriangulation::Face_circulator f = both.by_flips.incident_faces(both.by_flips.infinite_vertex()), first = f;
+    do {
+      count += f->info().output;
+    } while (++f != first);
+    return count;
+  };
   // Every third point, and every point on the hull as the triangulation starts.
   std::vector<bool> chosen(points.size());
   for (size_t k = 0; k < points.size(); k += 3) chosen[k] = true;
@@ -432,6 +491,7 @@ void expect_removal_as_cgals(const std::vector<Point>& points, const std::vector
     remove_point(both.by_flips, both.flips_handle[k], scratch);
     ASSERT_TRUE(both.by_flips.is_valid()) << "after point " << k;
     ASSERT_EQ(placed_edges(both.by_flips), placed_edges(both.by_cgal)) << "after point " << k;
+    ASSERT_EQ(infinite_faces_output(), 0) << "after point " << k;
   }
   EXPECT_GT(removed - on_hull, 20);
   EXPECT_GT(on_hull, 15);

@@ -213,7 +213,7 @@ ZipperResult zipper_meshes(const std::vector<ZipperCamera>& cameras, const Zippe
     if (overlaps[i]) pairs.push_back(candidates[i]);
   }
   result.stats.pairs = static_cast<int>(pairs.size());
-  scratch.masks.resize(pairs.size());
+  if (scratch.masks.size() < pairs.size()) scratch.masks.resize(pairs.size());  // only grows, as taken and stitch
   parallel_for(0, static_cast<int>(pairs.size()), [&](int i) {
     const auto [a, b] = pairs[i];
     compute_overlap_mask(views[a][levels], views[b][levels], 2 * d_r, scratch.masks[i].first);
