@@ -318,8 +318,8 @@ bool is_ear(const SeamTriangulation& triangulation, const std::vector<Vertex>& p
   return true;
 }
 
-// The ears to cut off the hole of v, in turn, each as its place in what is left of s.polygon
-// then, into s.ears. The polygon starts as v's neighbours (s.link). Inside the hull it is cut
+// The ears to cut off the hole of v, in turn, each as its tip and the corners beside it then,
+// into s.ears. The polygon starts as v's neighbours (s.link). Inside the hull it is cut
 // down to a triangle. On the hull it is the chain of v's finite neighbours, w1 … wk counter-
 // clockwise, w1 and wk on the hull: ears are cut off between them (never at w1 or wk) until none
 // is left, and the chain must then turn right or run straight at every corner: it is the new
@@ -335,7 +335,8 @@ bool find_ears(const SeamTriangulation& triangulation, bool on_hull, RemovalScra
     size_t k = ends;
     while (k + ends < s.polygon.size() && !is_ear(triangulation, s.polygon, k)) ++k;
     if (k + ends == s.polygon.size()) break;
-    s.ears.push_back(static_cast<int>(k));
+    const size_t n = s.polygon.size();
+    s.ears.push_back({s.polygon[(k + n - 1) % n], s.polygon[k], s.polygon[(k + 1) % n]});
     s.polygon.erase(s.polygon.begin() + static_cast<std::ptrdiff_t>(k));
   }
   if (!on_hull) return s.polygon.size() == 3;
@@ -426,16 +427,13 @@ void remove_point(SeamTriangulation& triangulation, Vertex v, RemovalScratch& s)
   s.created.clear();
   const size_t sides = on_hull ? s.link.size() - 1 : s.link.size();
   for (size_t k = 0; k < sides; ++k) s.created.emplace_back(s.link[k], s.link[(k + 1) % s.link.size()]);
-  s.polygon = s.link;
-  for (const int ear : s.ears) {
-    const size_t n = s.polygon.size(), k = static_cast<size_t>(ear);
+  for (const RemovalScratch::Ear& ear : s.ears) {
     Face f;
     int i = 0;
-    [[maybe_unused]] const bool is_edge = triangulation.is_edge(v, s.polygon[k], f, i);
+    [[maybe_unused]] const bool is_edge = triangulation.is_edge(v, ear.tip, f, i);
     assert(is_edge);
     triangulation.flip(f, i);
-    s.created.emplace_back(s.polygon[(k + n - 1) % n], s.polygon[(k + 1) % n]);
-    s.polygon.erase(s.polygon.begin() + ear);
+    s.created.emplace_back(ear.before, ear.after);
   }
   if (on_hull) {
     merge_into_infinite_vertex(triangulation, v, s.faces);

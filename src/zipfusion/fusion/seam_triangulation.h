@@ -92,7 +92,10 @@ struct ConstraintScratch {
 struct RemovalScratch {
   std::vector<SeamTriangulation::Vertex_handle> link;  //!< the point's neighbours, counter-clockwise
   std::vector<SeamTriangulation::Vertex_handle> polygon;  //!< the link as ears are cut off it
-  std::vector<int> ears;  //!< the corners of the link cut off in turn, as places in `polygon` then
+  struct Ear {
+    SeamTriangulation::Vertex_handle before, tip, after;  //!< counter-clockwise; before–after becomes an edge
+  };
+  std::vector<Ear> ears;  //!< the link's corners cut off in turn, with their neighbours then
   std::vector<ConstraintScratch::VertexPair> created;  //!< the hole's edges, to be made Delaunay
   std::vector<SeamTriangulation::Face_handle> faces;    //!< a point's faces, on the hull
   long left_to_cgal = 0;  //!< points removed by CGAL's `remove`, counted up
