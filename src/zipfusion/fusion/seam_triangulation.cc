@@ -226,14 +226,12 @@ Flipped constrain_by_flips(SeamTriangulation& triangulation, Vertex from, Vertex
 
 // Empties a container of CGAL's triangulation as Compact_container::clear does, but keeps its
 // blocks. Its free list hands out first the slot put on it last: erased as they lie, the slots
-// would come back in the order the last seam left them. So every slot is taken and then put back
-// from the last to the first, and the list hands them out from the first block's first slot on,
-// as a new container does with the blocks it allocates.
+// would come back in the order the last seam left them. So the free slots are taken too, and
+// then every slot is put back from the last to the first, and the list hands them out from the
+// first block's first slot on, as a new container does with the blocks it allocates.
 template <typename Slots>
 void free_in_block_order(Slots& slots) {
-  for (auto it = slots.begin(); it != slots.end();) slots.erase(it++);
-  const size_t capacity = slots.capacity();
-  for (size_t k = 0; k < capacity; ++k) slots.emplace();
+  for (size_t k = slots.size(); k < slots.capacity(); ++k) slots.emplace();
   if (slots.empty()) return;
   for (auto it = std::prev(slots.end());;) {
     const auto slot = it;
