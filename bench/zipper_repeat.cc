@@ -2,7 +2,7 @@
 // counts under callgrind, which are exact where this machine's times vary by a third
 // (docs/profile.md):
 //   valgrind --tool=callgrind --toggle-collect="$(build/zf_zipper_repeat --callgrind-function)" build/zf_zipper_repeat
-// with [--frame F] [--unfiltered] [--repeat N] [--capture DIR]; the total over N calls divided by
+// with [--frame F] [--unfiltered] [--repeat N] [--coarse-levels L] [--capture DIR]; the total over N calls divided by
 // N is the count per frame set once the first call's allocations are amortised. The function is
 // named in full: a pattern such as 'zipfusion::zipper_meshes*' also matches the lambdas inside it
 // that are not inlined, and callgrind toggles collection off again on entering each of those (the
@@ -40,7 +40,7 @@ constexpr const char* kZipperFunction =
 
 int main(int argc, char** argv) {
   keep_freed_memory();
-  int frame = 0, repeat = 3, threads = 1;
+  int frame = 0, repeat = 3, threads = 1, coarse_levels = ZipperOptions{}.coarse_levels;
   bool filtered = true;
   std::string capture;
   for (int i = 1; i < argc; ++i) {
@@ -53,16 +53,16 @@ int main(int argc, char** argv) {
       filtered = false;
     } else if (i + 1 < argc && arg == "--capture") {
       capture = argv[++i];
-    } else if (i + 1 < argc && (arg == "--frame" || arg == "--repeat" || arg == "--threads")) {
+    } else if (i + 1 < argc && (arg == "--frame" || arg == "--repeat" || arg == "--threads" || arg == "--coarse-levels")) {
       const int value = std::atoi(argv[++i]);
-      (arg == "--frame" ? frame : arg == "--repeat" ? repeat : threads) = value;
+      (arg == "--frame" ? frame : arg == "--repeat" ? repeat : arg == "--threads" ? threads : coarse_levels) = value;
     } else {
-      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T] [--capture DIR] | --callgrind-function\n");
+      std::fprintf(stderr, "usage: zf_zipper_repeat [--frame F] [--unfiltered] [--repeat N] [--threads T] [--coarse-levels L] [--capture DIR] | --callgrind-function\n");
       return 2;
     }
   }
-  if (frame < 0 || repeat < 1 || threads < 0) {
-    std::fprintf(stderr, "zf_zipper_repeat: --frame must be >= 0, --repeat >= 1, --threads >= 0 (0 = all cores)\n");
+  if (frame < 0 || repeat < 1 || threads < 0 || coarse_levels < 0 || coarse_levels > 4) {
+    std::fprintf(stderr, "zf_zipper_repeat: --frame must be >= 0, --repeat >= 1, --threads >= 0 (0 = all cores), --coarse-levels in [0, 4]\n");
     return 2;
   }
   SambaFrame samba;
@@ -76,7 +76,7 @@ int main(int argc, char** argv) {
   const int n = static_cast<int>(meshes.size());
   // The reconstruction's default ownership and seam smoothing for each input.
   const ReconstructOptions defaults{.bilateral = filtered};
-  const ZipperOptions options{.ownership = defaults.ownership(), .seam_smoothing_px = defaults.seam_smoothing_px(), .num_threads = threads};
+  const ZipperOptions options{.coarse_levels = coarse_levels, .ownership = defaults.ownership(), .seam_smoothing_px = defaults.seam_smoothing_px(), .num_threads = threads};
   ZipperScratch scratch;
   // Per stage, as ZipperStats names them, the times of every call.
   const std::vector<std::pair<const char*, double ZipperStats::*>> stages{
