@@ -424,7 +424,7 @@ def main(folder):
         out.append(f"| {stage} | " + " | ".join(f"{100 * config(samba, n)['ms'][stage]['median'] / sums[n]:.0f} %" for n in names) + " |")
     out += ["", "Inside the stages, see [profile.md](profile.md): `perf` and callgrind profiles taken apart from this run (per "
             "function and per source line), instruction counts per rig, and every idea measured towards the targets, "
-            "kept or not.", ""]
+            "kept or not, with an index of them at its top.", ""]
     print("\n".join(out))
 
 
