@@ -188,9 +188,11 @@ void run_bench(const BenchArgs& args) {
   const FrameSource source = capture_source(capture, 0, count);
   double ms = 0;
   UnreadableFrames unreadable("bench");
-  while (std::optional<FrameSet> set = source(ms)) {
-    unreadable.report(capture.rig(), *set);
-    frames.push_back(std::move(*set));
+  // Decoded into the same frame set each time, as the pipeline's recycled sets are (its buffers
+  // already there); a copy kept for every configuration, outside the time.
+  for (FrameSet set; source(set, ms);) {
+    unreadable.report(capture.rig(), set);
+    frames.push_back(set);
     decode_ms.push_back(ms);
     show_progress("decode", static_cast<int>(frames.size()), count);
   }

@@ -107,14 +107,13 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.range = parse_frame_range(args.frames, in.capture->frame_count());
     warn_missing_frames(*in.capture, in.range, command);
     in.source = [source = capture_source(*in.capture, in.range.begin, in.range.end), &in,
-                 report = std::make_shared<UnreadableFrames>(command)](double& decode_ms) {
-      std::optional<FrameSet> set = source(decode_ms);
-      if (!set) return set;
-      if (std::vector<std::string> files = report->report(in.capture->rig(), *set); !files.empty()) {
+                 report = std::make_shared<UnreadableFrames>(command)](FrameSet& set, double& decode_ms) {
+      if (!source(set, decode_ms)) return false;
+      if (std::vector<std::string> files = report->report(in.capture->rig(), set); !files.empty()) {
         std::lock_guard lock(in.unreadable_mutex);
-        in.unreadable[set->index] = std::move(files);
+        in.unreadable[set.index] = std::move(files);
       }
-      return set;
+      return true;
     };
     return;
   }

@@ -104,9 +104,9 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   const fs::path& mesh_dir = in.live ? out_dir : out.staging();
   if (!in.live) {
     // Live input stops on the signal by itself (its sources watch the flag).
-    in.source = [source = std::move(in.source)](double& decode_ms) -> std::optional<FrameSet> {
-      if (stop_requested()) return std::nullopt;
-      return source(decode_ms);
+    in.source = [source = std::move(in.source)](FrameSet& set, double& decode_ms) {
+      if (stop_requested()) return false;
+      return source(set, decode_ms);
     };
   }
 

@@ -87,32 +87,32 @@ class PacedSource {
   PacedSource(const Capture& capture, const FrameRange& range, bool loop, double seconds)
       : capture_(capture), range_(range), loop_(loop), period_(1.0 / capture.rig().fps), seconds_(seconds) {}
 
-  std::optional<FrameSet> next(double& decode_ms) {
-    if (stop_requested()) return std::nullopt;
+  // The pipeline's FrameSource: the next frame set into `set` (its buffers reused), when it is due.
+  bool next(FrameSet& set, double& decode_ms) {
+    if (stop_requested()) return false;
     const int count = range_.end - range_.begin;
-    if (!loop_ && sequence_ >= count) return std::nullopt;
+    if (!loop_ && sequence_ >= count) return false;
     const int index = range_.begin + static_cast<int>(sequence_ % count);
     const Clock::time_point due = start_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(sequence_ * period_));
-    if (seconds_ > 0 && std::chrono::duration<double>(due - start_).count() >= seconds_) return std::nullopt;
-    FrameSet set;
+    if (seconds_ > 0 && std::chrono::duration<double>(due - start_).count() >= seconds_) return false;
     decode_ms = 0;
     if (loop_ && static_cast<int>(cache_.size()) == count) {
       set = cache_[index - range_.begin];
     } else {
       const Clock::time_point t = Clock::now();
-      set = capture_.load_frame(index);
+      reader_.read(index, set);
       decode_ms = ms_since(t);
       unreadable_.report(capture_.rig(), set);
       if (loop_) cache_.push_back(set);
     }
     // Waits in short steps: Ctrl-C must stop a capture of a few frames per second (or fewer) at once.
     for (Clock::time_point now = Clock::now(); now < due; now = Clock::now()) {
-      if (stop_requested()) return std::nullopt;
+      if (stop_requested()) return false;
       std::this_thread::sleep_until(std::min(due, now + std::chrono::milliseconds(50)));
     }
     ++sequence_;
     set.capture_time_ms = epoch_ms();  // now is when a camera would have delivered it
-    return set;
+    return true;
   }
 
  private:
@@ -123,6 +123,7 @@ class PacedSource {
   double seconds_;
   const Clock::time_point start_ = Clock::now();
   long sequence_ = 0;
+  FrameSetReader reader_{capture_};
   std::vector<FrameSet> cache_;
   UnreadableFrames unreadable_{"serve"};
 };
@@ -160,12 +161,12 @@ void run_serve(ServeArgs& args) {
   FrameSource source;
   if (in.capture) {
     paced = std::make_unique<PacedSource>(*in.capture, in.range, args.loop, args.input.seconds);
-    source = [&](double& decode_ms) { return paced->next(decode_ms); };
+    source = [&](FrameSet& set, double& decode_ms) { return paced->next(set, decode_ms); };
   } else {
-    source = [&](double& decode_ms) {
-      std::optional<FrameSet> set = in.source(decode_ms);
-      if (set) set->capture_time_ms = epoch_ms();
-      return set;
+    source = [&](FrameSet& set, double& decode_ms) {
+      if (!in.source(set, decode_ms)) return false;
+      set.capture_time_ms = epoch_ms();
+      return true;
     };
   }
   PipelineOptions pipeline_options = reconstruction.pipeline_options();

@@ -37,6 +37,14 @@ struct Image {
     data.assign(static_cast<size_t>(w) * h, fill);
   }
 
+  //! resize() without the fill, for a caller that writes every pixel: the buffer is reused where it
+  //! is large enough (a decoder, frame after frame), and the pixels are unspecified until written.
+  void resize_for_overwrite(int w, int h) {
+    width = w;
+    height = h;
+    data.resize(static_cast<size_t>(w) * h);
+  }
+
   friend bool operator==(const Image&, const Image&) = default;
 };
 

@@ -1,14 +1,18 @@
 #include "zipfusion/io/capture.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cassert>
+#include <cerrno>
 #include <cmath>
-#include <tuple>
 #include <cstdio>
+#include <cstring>
 #include <system_error>
+#include <tuple>
 
 #include "zipfusion/core/error.h"
-#include "zipfusion/io/image_io.h"
+#include "zipfusion/core/parallel.h"
 
 namespace zipfusion {
 namespace {
@@ -18,14 +22,25 @@ namespace fs = std::filesystem;
 // Is a frame file there? A missing one (or a link to nothing) is a missing frame, which degrades
 // the frame set; one that cannot even be looked at (a loop of links, no permission) is an error
 // naming it.
-bool frame_file_present(const fs::path& file) {
-  std::error_code ec;
-  const bool present = fs::exists(file, ec);
-  if (ec && ec != std::errc::no_such_file_or_directory) throw IoError(file.string() + ": " + ec.message());
-  return present;
+// (stat(2) on the name as it stands, not std::filesystem: a path object allocates each time.)
+bool frame_file_present(const std::string& file) {
+  struct stat status {};
+  if (::stat(file.c_str(), &status) == 0) return true;
+  const int error = errno;  // before the message is built, which may change it
+  if (error == ENOENT || error == ENOTDIR) return false;
+  throw IoError(file + ": " + std::strerror(error));
 }
 
-void check_size(const std::string& file, int width, int height, const Intrinsics& k, const std::string& field) {
+// `folder` (which ends in a separator) + frame_file_name(frame, extension), into `out`, whose
+// buffer is reused.
+void frame_file_path(const std::string& folder, int frame, const char* extension, std::string& out) {
+  char name[32];
+  std::snprintf(name, sizeof name, "%06d%s", frame, extension);
+  out.assign(folder);
+  out.append(name);
+}
+
+void check_size(const std::string& file, int width, int height, const Intrinsics& k, const char* field) {
   if (width != k.width || height != k.height) {
     throw InvalidInput(file + ": size " + std::to_string(width) + "x" + std::to_string(height) + " does not match rig.json " +
                        field + " " + std::to_string(k.width) + "x" + std::to_string(k.height));
@@ -164,6 +179,10 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
   capture.depth_undistortion_ = depth_undistortion_maps(capture.rig_);
+  for (const CameraModel& camera : rig.cameras) {
+    // Appending an empty name ends each in a separator, as depth_path()'s join would put one.
+    capture.frame_folders_.push_back({(dir / camera.name / "depth" / "").string(), (dir / camera.name / "color" / "").string()});
+  }
   return capture;
 }
 
@@ -233,14 +252,18 @@ std::vector<std::vector<int>> depth_undistortion_maps(const Rig& rig) {
 
 DepthImage undistort_depth(DepthImage recorded, const std::vector<std::vector<int>>& maps, int camera) {
   if (camera >= static_cast<int>(maps.size()) || maps[camera].empty()) return recorded;
-  const std::vector<int>& source_pixel = maps[camera];
+  DepthImage out;
+  undistort_depth_into(recorded, maps[camera], camera, out);
+  return out;
+}
+
+void undistort_depth_into(const DepthImage& recorded, const std::vector<int>& source_pixel, int camera, DepthImage& out) {
   if (source_pixel.size() != recorded.data.size()) {
     throw InvalidInput("camera " + std::to_string(camera) + ": a depth frame of " + std::to_string(recorded.width) + "x" + std::to_string(recorded.height) +
                        ", but its depth_intrinsics undistort " + std::to_string(source_pixel.size()) + " pixels");
   }
-  DepthImage out(recorded.width, recorded.height);
+  out.resize_for_overwrite(recorded.width, recorded.height);
   for (int p = 0; p < static_cast<int>(out.data.size()); ++p) out.data[p] = undistorted_depth(recorded.data.data(), source_pixel.data(), p);
-  return out;
 }
 
 fs::path Capture::ground_truth_mesh_path(int frame) const {
@@ -257,20 +280,32 @@ fs::path Capture::color_path(int frame, int camera) const {
   return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, file == ColorFile::kJpg ? ".jpg" : ".png");
 }
 
-CameraFrame Capture::load_camera_frame(int frame, int camera) const { return load(frame, camera, true); }
+CameraFrame Capture::load_camera_frame(int frame, int camera) const {
+  CameraFrame out;
+  CameraFrameScratch scratch;
+  load_camera_frame(frame, camera, out, scratch);
+  return out;
+}
 
-CameraFrame Capture::load_camera_depth(int frame, int camera) const { return load(frame, camera, false); }
+CameraFrame Capture::load_camera_depth(int frame, int camera) const {
+  CameraFrame out;
+  CameraFrameScratch scratch;
+  load_camera_frame(frame, camera, out, scratch, false);
+  return out;
+}
 
-CameraFrame Capture::load(int frame, int camera, bool with_color) const {
+void Capture::load_camera_frame(int frame, int camera, CameraFrame& out, CameraFrameScratch& scratch, bool with_color) const {
   assert(frame >= 0 && frame < frame_count() && camera >= 0 && camera < camera_count());
   const CameraModel& model = rig_.cameras[camera];
-  CameraFrame out;
-  const fs::path depth_file = depth_path(frame, camera);
+  // What an earlier frame left in `out` goes. An image is emptied only where it is left out (its
+  // buffer kept): one decoded is written whole, and growing an emptied one would clear it first.
+  out.has_depth = out.has_color = false;
+  out.unreadable.clear();
   // A file that is there but whose bytes cannot be read or decoded is left out as a missing one
   // is, its reason (which names it) kept for the caller to report; strict, the error goes up. A
   // decoded image of another size or bit depth than rig.json's breaks the capture's contract and
   // is an error either way.
-  auto decode_or_leave_out = [&](const std::function<void()>& decode) {
+  auto decode_or_leave_out = [&](auto&& decode) {
     if (options_.strict) {
       decode();
       return true;
@@ -279,34 +314,50 @@ CameraFrame Capture::load(int frame, int camera, bool with_color) const {
     if (reason) out.unreadable.push_back(std::move(*reason));
     return !reason;
   };
-  if (frame_file_present(depth_file)) {
+  std::string& file = scratch.path;
+  frame_file_path(frame_folders_[camera].depth, frame, ".png", file);
+  if (frame_file_present(file)) {
+    const std::vector<int>* undistortion = camera < static_cast<int>(depth_undistortion_.size()) && !depth_undistortion_[camera].empty()
+                                               ? &depth_undistortion_[camera]
+                                               : nullptr;
+    DepthImage& decoded = undistortion != nullptr ? scratch.recorded : out.depth;
     out.has_depth = decode_or_leave_out([&] {
-      DepthImage recorded = read_depth_png(depth_file);
-      check_size(depth_file.string(), recorded.width, recorded.height, model.depth_intrinsics, "depth_intrinsics");
-      out.depth = undistort_depth(std::move(recorded), depth_undistortion_, camera);
+      scratch.decoder.read_depth_png(file, decoded);
+      check_size(file, decoded.width, decoded.height, model.depth_intrinsics, "depth_intrinsics");
+      if (undistortion != nullptr) undistort_depth_into(scratch.recorded, *undistortion, camera, out.depth);
     });
   } else if (options_.strict) {
-    throw InvalidInput(depth_file.string() + ": missing frame");
+    throw InvalidInput(file + ": missing frame");
   }
+  if (!out.has_depth) out.depth.resize_for_overwrite(0, 0);  // missing, or half decoded
   if (with_color && model.has_color()) {
-    const fs::path color_file = color_path(frame, camera);
-    if (!color_file.empty() && frame_file_present(color_file)) {
+    const ColorFile kind = color_file_.at(camera).at(frame);
+    if (kind != ColorFile::kNone) frame_file_path(frame_folders_[camera].color, frame, kind == ColorFile::kJpg ? ".jpg" : ".png", file);
+    if (kind != ColorFile::kNone && frame_file_present(file)) {
       out.has_color = decode_or_leave_out([&] {
-        ColorImage color = read_color_image(color_file);
-        check_size(color_file.string(), color.width, color.height, *model.color_intrinsics, "color_intrinsics");
-        out.color = std::move(color);
+        scratch.decoder.read_color_image(file, out.color);
+        check_size(file, out.color.width, out.color.height, *model.color_intrinsics, "color_intrinsics");
       });
     } else if (options_.strict) {
       throw InvalidInput((dir_ / model.name / "color" / frame_file_name(frame, ".jpg")).string() + ": missing frame");
     }
   }
-  return out;
+  if (!out.has_color) out.color.resize_for_overwrite(0, 0);
 }
 
 std::vector<std::string> unreadable_files(const FrameSet& set) {
   std::vector<std::string> files;
   for (const CameraFrame& camera : set.cameras) files.insert(files.end(), camera.unreadable.begin(), camera.unreadable.end());
   return files;
+}
+
+FrameSetReader::FrameSetReader(const Capture& capture) : capture_(capture), scratch_(capture.camera_count()) {}
+
+void FrameSetReader::read(int frame, FrameSet& set) {
+  set.index = frame;
+  set.capture_time_ms = 0;
+  set.cameras.resize(capture_.camera_count());
+  parallel_for(0, capture_.camera_count(), [&](int c) { capture_.load_camera_frame(frame, c, set.cameras[c], scratch_[c]); });
 }
 
 FrameSet Capture::load_frame(int frame) const {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "zipfusion/core/image.h"
+#include "zipfusion/io/image_io.h"
 #include "zipfusion/io/rig.h"
 
 namespace zipfusion {
@@ -49,6 +50,15 @@ struct FrameSet {
 
 //! Every camera's unreadable frame files of a frame set (CameraFrame::unreadable), in rig order.
 std::vector<std::string> unreadable_files(const FrameSet& set);
+
+//! What loading one camera's frames keeps from frame set to frame set (Capture::load_camera_frame
+//! into a CameraFrame): the decoder, the frame file's name, and the recorded depth of a camera
+//! whose depth is undistorted.
+struct CameraFrameScratch {
+  ImageDecoder decoder;
+  std::string path;
+  DepthImage recorded;
+};
 
 //! A frame file that the rig promises but the folder lacks.
 struct MissingFrame {
@@ -92,6 +102,11 @@ class Capture {
   //! The same without the colour image (has_color false): for work that reads only depth.
   CameraFrame load_camera_depth(int frame, int camera) const;
   FrameSet load_frame(int frame) const;
+  //! load_camera_frame (load_camera_depth without `with_color`) into `out`, whose images' buffers
+  //! are reused, as are `scratch`'s: once they have grown, loading a camera's frame allocates
+  //! nothing from the C++ heap (ImageDecoder says what libjpeg still does). A file left out
+  //! leaves its image empty, whatever `out` held before.
+  void load_camera_frame(int frame, int camera, CameraFrame& out, CameraFrameScratch& scratch, bool with_color = true) const;
 
   //! Throws InvalidInput ("OPTION: …") when `output` would be written among the capture's own
   //! files: the capture folder itself, a file in it, or its ground truth or a camera's folder or
@@ -114,7 +129,10 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
-  CameraFrame load(int frame, int camera, bool with_color) const;
+  struct FrameFolders {
+    std::string depth, color;  // each ends in a separator
+  };
+  std::vector<FrameFolders> frame_folders_;  // per camera
   std::vector<std::vector<ColorFile>> color_file_;  // [camera][frame]
   std::vector<std::vector<int>> depth_undistortion_;  // depth_undistortion_maps(rig_)
 };
@@ -132,6 +150,25 @@ inline std::uint16_t undistorted_depth(const std::uint16_t* recorded, const int*
 //! `recorded` through camera `camera`'s map of `maps` (depth_undistortion_maps); unchanged when
 //! that map is empty or missing.
 DepthImage undistort_depth(DepthImage recorded, const std::vector<std::vector<int>>& maps, int camera);
+
+//! Undistorts `recorded` through `source_pixel` (a depth_undistortion_map of camera `camera`, which
+//! errors name) into `out`, whose buffer is reused.
+void undistort_depth_into(const DepthImage& recorded, const std::vector<int>& source_pixel, int camera, DepthImage& out);
+
+//! Reads frame sets of a capture into a FrameSet used again and again (the pipeline's): each camera
+//! is decoded into the buffers the set already holds (Capture::load_camera_frame with a scratch
+//! per camera), the cameras in parallel (parallel_for). Once the buffers have grown, reading a
+//! frame set allocates nothing from the C++ heap. The capture must outlive it; not thread-safe.
+class FrameSetReader {
+ public:
+  explicit FrameSetReader(const Capture& capture);
+  //! Frame `frame` into `set` (index set, capture time 0, one CameraFrame per camera).
+  void read(int frame, FrameSet& set);
+
+ private:
+  const Capture& capture_;
+  std::vector<CameraFrameScratch> scratch_;  // per camera
+};
 
 //! Frame file name: 6-digit zero-padded index plus extension ("000042.png").
 std::string frame_file_name(int frame, const std::string& extension);

@@ -11,6 +11,9 @@
 #include <zlib.h>
 
 #include <cstdlib>
+#include <functional>
+#include <string_view>
+#include <typeinfo>
 #include <opencv2/imgcodecs.hpp>
 
 #include "zipfusion/core/error.h"
@@ -166,6 +169,37 @@ TEST_F(SmallCapture, AnUnusableFrameFileDegradesLikeAMissingOne) {
   EXPECT_TRUE(depth_only.unreadable.empty());
 }
 
+// A FrameSetReader fills one FrameSet frame after frame (the pipeline's recycled sets): what it
+// holds is what a fresh load gives, whatever the set held before. A missing, undecodable or
+// present file after the others leaves its camera's image empty or whole, never last frame's.
+TEST_F(SmallCapture, AReusedFrameSetHoldsWhatAFreshLoadGives) {
+  const fs::path depth = dir_ / "b" / "depth" / "000002.png";
+  std::vector<std::uint8_t> bytes = read_file_bytes(depth);
+  bytes.resize(bytes.size() / 2);
+  write_file_atomic(depth, bytes);
+  fs::remove(dir_ / "a" / "color" / "000001.png");
+  fs::remove(dir_ / "a" / "depth" / "000000.png");
+  const Capture capture = Capture::open(dir_);
+  FrameSetReader reader(capture);
+  FrameSet set;
+  for (int f : {1, 0, 2, 1, 2, 0, 2, 1}) {
+    reader.read(f, set);
+    const FrameSet fresh = capture.load_frame(f);
+    EXPECT_EQ(set.index, f);
+    ASSERT_EQ(set.cameras.size(), fresh.cameras.size());
+    for (size_t c = 0; c < set.cameras.size(); ++c) {
+      const CameraFrame &got = set.cameras[c], &want = fresh.cameras[c];
+      EXPECT_EQ(got.has_depth, want.has_depth) << "frame " << f << " camera " << c;
+      EXPECT_EQ(got.depth, want.depth) << "frame " << f << " camera " << c;
+      EXPECT_EQ(got.has_color, want.has_color) << "frame " << f << " camera " << c;
+      EXPECT_EQ(got.color, want.color) << "frame " << f << " camera " << c;
+      EXPECT_EQ(got.unreadable, want.unreadable) << "frame " << f << " camera " << c;
+    }
+  }
+  EXPECT_FALSE(set.cameras[0].has_color);  // frame 1, read last
+  EXPECT_TRUE(set.cameras[0].color.empty());
+}
+
 // A frame "file" that cannot be read (here a folder) is left out like an undecodable one.
 TEST_F(SmallCapture, AFrameThatCannotBeReadDegradesLikeAnUndecodableOne) {
   const fs::path file = dir_ / "b" / "depth" / "000001.png";
@@ -176,6 +210,10 @@ TEST_F(SmallCapture, AFrameThatCannotBeReadDegradesLikeAnUndecodableOne) {
   EXPECT_TRUE(set.cameras[0].has_depth);
   EXPECT_EQ(unreadable_files(set), std::vector<std::string>{file.string() + ": not a regular file (a folder, device or pipe)"});
   EXPECT_THROW(Capture::open(dir_, {.strict = true}).load_frame(1), IoError);
+  // A pipe with no writer: opening it must not wait for one.
+  fs::remove(file);
+  ASSERT_EQ(::mkfifo(file.c_str(), 0600), 0);
+  EXPECT_EQ(unreadable_files(Capture::open(dir_).load_frame(1)), std::vector<std::string>{file.string() + ": not a regular file (a folder, device or pipe)"});
 }
 
 TEST(FolderPath, TrailingSeparatorsAndDotsGo) {
@@ -674,6 +712,119 @@ TEST(ColorImage, JpegAndDepthPngPixelsMatchOpenCv) {
   const DepthImage decoded = decode_depth_png(encode_depth_png(depth), "d.png");
   ASSERT_EQ(decoded.width, 33);
   EXPECT_EQ(decoded.data, depth.data);
+}
+
+// A JPEG without its Huffman tables (the DHT segments cut out), as MJPEG cameras send frames that
+// use the standard tables.
+std::vector<std::uint8_t> without_huffman_tables(const std::vector<std::uint8_t>& jpeg) {
+  std::vector<std::uint8_t> out(jpeg.begin(), jpeg.begin() + 2);  // SOI
+  size_t at = 2;
+  while (at + 4 <= jpeg.size() && jpeg[at] == 0xFF && jpeg[at + 1] != 0xDA) {  // up to the scan
+    const size_t length = 2 + (static_cast<size_t>(jpeg[at + 2]) << 8 | jpeg[at + 3]);
+    if (jpeg[at + 1] != 0xC4) out.insert(out.end(), jpeg.begin() + static_cast<std::ptrdiff_t>(at), jpeg.begin() + static_cast<std::ptrdiff_t>(at + length));
+    at += length;
+  }
+  out.insert(out.end(), jpeg.begin() + static_cast<std::ptrdiff_t>(at), jpeg.end());
+  return out;
+}
+
+// One ImageDecoder through a run of images, good ones and bad ones of both kinds, of several
+// sizes, decoding into the same two images: each outcome (pixels, or the error's type and text)
+// is what a fresh decoder gives, so nothing an image leaves behind (libjpeg's tables or its state
+// after an error, libpng's blocks, a larger image's buffer) changes the next. A JPEG with
+// optimised Huffman tables before one without tables: a kept libjpeg decompressor decoded the
+// second through the first's tables (the fuzz target found it).
+TEST(ImageDecoder, OneDecoderGivesWhatFreshOnesGive) {
+  cv::Mat bgr(30, 40, CV_8UC3), larger(48, 64, CV_8UC3);
+  cv::randu(bgr, 0, 255);
+  cv::randu(larger, 0, 255);
+  std::vector<std::uint8_t> jpeg, larger_jpeg, color_png, grey_png;
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg));
+  ASSERT_TRUE(cv::imencode(".jpg", larger, larger_jpeg));
+  ASSERT_TRUE(cv::imencode(".png", bgr, color_png));
+  cv::Mat grey(17, 33, CV_8UC1);
+  cv::randu(grey, 0, 255);
+  ASSERT_TRUE(cv::imencode(".png", grey, grey_png));
+  const std::vector<std::uint8_t> depth = encode_depth_png(ramp_depth(33, 17, 4)), larger_depth = encode_depth_png(ramp_depth(70, 50, 9));
+  const std::vector<std::uint8_t> truncated_jpeg(jpeg.begin(), jpeg.begin() + static_cast<std::ptrdiff_t>(jpeg.size() / 2));
+  std::vector<std::uint8_t> optimized_jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", larger, optimized_jpeg, {cv::IMWRITE_JPEG_OPTIMIZE, 1}));
+  const std::vector<std::uint8_t> no_tables_jpeg = without_huffman_tables(jpeg);
+  ASSERT_LT(no_tables_jpeg.size(), jpeg.size());
+  EXPECT_EQ(decode_color_image(no_tables_jpeg, "in.jpg"), decode_color_image(jpeg, "in.jpg"));  // the standard tables
+  const std::vector<std::uint8_t> truncated_depth(larger_depth.begin(), larger_depth.begin() + static_cast<std::ptrdiff_t>(larger_depth.size() / 2));
+  struct Input {
+    const std::vector<std::uint8_t>* bytes;
+    bool depth;
+  };
+  const std::vector<Input> run = {{&depth, true},         {&jpeg, false},          {&truncated_jpeg, false}, {&jpeg, false},
+                                  {&larger_depth, true},  {&truncated_depth, true}, {&depth, true},          {&color_png, false},
+                                  {&grey_png, true},      {&larger_jpeg, false},   {&grey_png, false},       {&truncated_jpeg, false},
+                                  {&larger_jpeg, false},  {&optimized_jpeg, false}, {&no_tables_jpeg, false}, {&depth, true}};
+  auto outcome = [](auto&& decode, const auto& image) -> std::string {
+    try {
+      decode();
+    } catch (const std::exception& e) {
+      return typeid(e).name() + std::string(": ") + e.what();
+    }
+    return std::to_string(image.width) + "x" + std::to_string(image.height) + " " +
+           std::to_string(std::hash<std::string_view>{}(std::string_view(reinterpret_cast<const char*>(image.data.data()), image.data.size() * sizeof(image.data[0]))));
+  };
+  ImageDecoder decoder;
+  DepthImage depth_image;
+  ColorImage color_image;
+  int errors = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = 0; i < run.size(); ++i) {
+      const Input& in = run[i];
+      std::string reused, fresh;
+      if (in.depth) {
+        DepthImage alone;
+        reused = outcome([&] { decoder.decode_depth_png(*in.bytes, "in.png", depth_image); }, depth_image);
+        fresh = outcome([&] { alone = decode_depth_png(*in.bytes, "in.png"); }, alone);
+      } else {
+        ColorImage alone;
+        reused = outcome([&] { decoder.decode_color_image(*in.bytes, "in.img", color_image); }, color_image);
+        fresh = outcome([&] { alone = decode_color_image(*in.bytes, "in.img"); }, alone);
+      }
+      EXPECT_EQ(reused, fresh) << "pass " << pass << ", image " << i;
+      errors += reused.find(": ") != std::string::npos && reused.find("in.") != std::string::npos;
+    }
+  }
+  EXPECT_EQ(errors, 2 * 4);  // two truncated JPEGs, a truncated depth PNG, an 8-bit PNG as depth
+}
+
+// A camera's frames, a depth PNG and a colour PNG each time: libpng's blocks are made for the first
+// frame and found again at every later one. Images of changing sizes do not pile blocks up: what
+// is kept is what the last image used, as many blocks as a fresh decoder keeps for it alone.
+TEST(ImageDecoder, LibpngsBlocksAreFoundAgainAndDoNotPileUp) {
+  cv::Mat bgr(30, 40, CV_8UC3);
+  cv::randu(bgr, 0, 255);
+  std::vector<std::uint8_t> color_png;
+  ASSERT_TRUE(cv::imencode(".png", bgr, color_png));
+  const std::vector<std::uint8_t> depth_png = encode_depth_png(ramp_depth(40, 30, 4));
+  ImageDecoder decoder;
+  DepthImage depth;
+  ColorImage color;
+  long made_after_first_frame = 0;
+  for (int frame = 0; frame < 3; ++frame) {
+    decoder.decode_depth_png(depth_png, "d.png", depth);
+    decoder.decode_color_image(color_png, "c.png", color);
+    if (frame == 0) made_after_first_frame = decoder.png_blocks_made();
+  }
+  EXPECT_GT(made_after_first_frame, 0);
+  EXPECT_EQ(decoder.png_blocks_made(), made_after_first_frame);
+
+  ImageDecoder growing;
+  std::vector<std::uint8_t> last;
+  for (int width = 200; width <= 4000; width += 200) {
+    last = encode_depth_png(ramp_depth(width, 8, width));
+    growing.decode_depth_png(last, "d.png", depth);
+  }
+  ImageDecoder fresh;
+  fresh.decode_depth_png(last, "d.png", depth);
+  EXPECT_GT(growing.png_blocks_made(), fresh.png_blocks_made());  // the rows grew
+  EXPECT_EQ(growing.png_memory_blocks(), fresh.png_memory_blocks());
 }
 
 // Every capture in ../shared/data follows the format and loads.

@@ -8,6 +8,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -18,22 +19,51 @@
 namespace zipfusion {
 
 std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path) {
-  std::error_code ec;
-  const std::filesystem::file_status status = std::filesystem::status(path, ec);
-  if (!std::filesystem::is_regular_file(status)) {
-    throw IoError(path.string() + (std::filesystem::exists(status) ? ": not a regular file (a folder, device or pipe)" : ": no such file"));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError(path.string() + ": cannot open for reading");
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) throw IoError(path.string() + ": cannot determine size");
-  in.seekg(0);
-  std::vector<std::uint8_t> bytes(static_cast<size_t>(size));
-  if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size)) {
-    throw IoError(path.string() + ": read failed");
-  }
+  std::vector<std::uint8_t> bytes;
+  read_file_bytes(path.string(), bytes);
   return bytes;
+}
+
+void read_file_bytes(const std::string& path, std::vector<std::uint8_t>& bytes) {
+  constexpr const char* kNotRegular = ": not a regular file (a folder, device or pipe)";
+  // Nothing but a regular file is opened: opening a device can act (a tape rewinds, a watchdog
+  // arms). The type is asked again of what was opened, in case the name changed in between; then
+  // O_NONBLOCK keeps a pipe from making open wait for a writer, O_NOCTTY a terminal from becoming
+  // ours. (errno is copied at once: building the message may change it.)
+  struct stat status {};
+  if (::stat(path.c_str(), &status) != 0) {
+    const int error = errno;
+    if (error == ENOENT || error == ENOTDIR) throw IoError(path + ": no such file");
+    throw IoError(path + ": cannot open for reading: " + std::strerror(error));
+  }
+  if (!S_ISREG(status.st_mode)) throw IoError(path + kNotRegular);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+  if (fd < 0) {
+    const int error = errno;
+    throw IoError(path + ": cannot open for reading: " + std::strerror(error));
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  if (::fstat(fd, &status) != 0) {
+    const int error = errno;
+    throw IoError(path + ": cannot determine size: " + std::strerror(error));
+  }
+  if (!S_ISREG(status.st_mode)) throw IoError(path + kNotRegular);
+  const size_t size = static_cast<size_t>(status.st_size);
+  // A buffer kept from a file far larger than this one (a bogus frame file) is not kept for ever.
+  if (bytes.capacity() > 2 * size + (std::size_t{1} << 20)) std::vector<std::uint8_t>().swap(bytes);
+  bytes.resize(size);
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t got = ::read(fd, bytes.data() + done, bytes.size() - done);
+    const int error = errno;
+    if (got < 0 && error == EINTR) continue;
+    if (got < 0) throw IoError(path + ": read failed: " + std::strerror(error));
+    if (got == 0) throw IoError(path + ": read failed (the file became shorter)");
+    done += static_cast<size_t>(got);
+  }
 }
 
 void write_file_atomic(const std::filesystem::path& given_path, std::span<const std::uint8_t> bytes) {

@@ -13,8 +13,12 @@
 
 namespace zipfusion {
 
-//! Throws IoError naming the file when it cannot be opened or read.
+//! Throws IoError naming the file when it cannot be opened or read (no such file, not a regular
+//! file, a read error).
 std::vector<std::uint8_t> read_file_bytes(const std::filesystem::path& path);
+//! The same into `bytes`, whose buffer is reused: once it has grown to the largest file read,
+//! reading allocates nothing (the frames of a capture, frame set after frame set).
+void read_file_bytes(const std::string& path, std::vector<std::uint8_t>& bytes);
 
 //! Writes bytes to path atomically. Throws IoError naming the file on failure.
 void write_file_atomic(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);

@@ -6,6 +6,7 @@
 
 #include <csetjmp>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <type_traits>
 #include <opencv2/imgcodecs.hpp>
@@ -18,11 +19,11 @@ namespace {
 
 constexpr std::uint8_t kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 
-bool is_png(const std::vector<std::uint8_t>& bytes) {
+bool is_png(std::span<const std::uint8_t> bytes) {
   return bytes.size() >= 8 && std::equal(kPngSignature, kPngSignature + 8, bytes.begin());
 }
 
-bool is_jpeg(const std::vector<std::uint8_t>& bytes) {
+bool is_jpeg(std::span<const std::uint8_t> bytes) {
   return bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
 }
 
@@ -77,16 +78,95 @@ void png_on_error(png_structp png, png_const_charp message) {
 
 void png_on_warning(png_structp, png_const_charp) {}
 
+// libpng's memory (its allocator, png_create_read_struct_2), kept from image to image: libpng asks
+// for the same few blocks for every image of a size (its two structs, a row or two, zlib's
+// window), so after the first image each request finds a free block at least as large, and
+// decoding allocates nothing. After each image the blocks it did not use are freed, so that images
+// of changing sizes do not pile blocks up: what is kept is what the last image used. (Depth and
+// colour each have their own, so that a camera's two images do not free each other's blocks.)
+class PngMemory {
+ public:
+  PngMemory() { blocks_.reserve(32); }
+  ~PngMemory() {
+    for (const Block& block : blocks_) std::free(block.data);
+  }
+  PngMemory(const PngMemory&) = delete;
+  PngMemory& operator=(const PngMemory&) = delete;
+
+  // The smallest free block that holds `size` bytes, else a new one; null when out of memory
+  // (libpng then reports the error). Never throws: it is called from inside libpng.
+  void* allocate(size_t size) noexcept {
+    Block* best = nullptr;
+    for (Block& block : blocks_) {
+      if (!block.used && block.size >= size && (best == nullptr || block.size < best->size)) best = &block;
+    }
+    if (best == nullptr) {
+      void* data = std::malloc(size);
+      if (data == nullptr) return nullptr;
+      try {
+        blocks_.push_back({data, size, false});
+      } catch (...) {
+        std::free(data);
+        return nullptr;
+      }
+      best = &blocks_.back();
+      ++blocks_made_;
+    }
+    best->used = best->touched = true;
+    return best->data;
+  }
+
+  void release(void* data) noexcept {
+    for (Block& block : blocks_) {
+      if (block.data == data) {
+        block.used = false;
+        return;
+      }
+    }
+  }
+
+  // Frees the blocks not used since the last call (none is in use between images).
+  void release_unused() noexcept {
+    size_t kept = 0;
+    for (Block& block : blocks_) {
+      if (block.used || block.touched) {
+        block.touched = false;
+        blocks_[kept++] = block;
+      } else {
+        std::free(block.data);
+      }
+    }
+    blocks_.resize(kept);
+  }
+
+  int blocks() const { return static_cast<int>(blocks_.size()); }
+  long blocks_made() const { return blocks_made_; }
+
+ private:
+  struct Block {
+    void* data = nullptr;
+    size_t size = 0;
+    bool used = false;     // handed to libpng and not yet given back
+    bool touched = false;  // handed out since the last release_unused
+  };
+  std::vector<Block> blocks_;
+  long blocks_made_ = 0;
+};
+
+png_voidp png_allocate(png_structp png, png_alloc_size_t size) { return static_cast<PngMemory*>(png_get_mem_ptr(png))->allocate(size); }
+
+void png_release(png_structp png, png_voidp data) { static_cast<PngMemory*>(png_get_mem_ptr(png))->release(data); }
+
 // Everything a PNG decode keeps, owned by decode_png: a longjmp from libpng back to the setjmp in
 // read_png leaves that function's own locals indeterminate (C11 7.13.2.1), so read_png keeps none
-// it reads after one, and skips no destructor. The destructor frees libpng's structs however the
-// decode ends, std::bad_alloc included.
+// it reads after one, and skips no destructor. The destructor hands libpng's structs back however
+// the decode ends, std::bad_alloc included.
 struct PngDecode {
   PngSource input;
   png_structp png = nullptr;
   png_infop info = nullptr;
   std::uint32_t width = 0, height = 0;
-  std::vector<png_bytep> rows;
+  std::vector<png_bytep>* rows = nullptr;  // the decoder's, reused
   // What the file holds, when it is not what was asked for (set inside, thrown outside).
   int wrong_bits = 0, wrong_channels = 0;
 
@@ -94,7 +174,8 @@ struct PngDecode {
 };
 
 // Reads the PNG of `d` into `image`: 16-bit grey (native byte order) for depth (a DepthImage),
-// else 8-bit RGB (a ColorImage). False when libpng reported an error (d.input.error).
+// else 8-bit RGB (a ColorImage), in its buffer where that is large enough. False when libpng
+// reported an error (d.input.error).
 template <typename ImageT>
 bool read_png(PngDecode& d, ImageT& image) {
   constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
@@ -127,22 +208,28 @@ bool read_png(PngDecode& d, ImageT& image) {
   const size_t row_bytes = png_get_rowbytes(d.png, d.info);
   if (row_bytes != static_cast<size_t>(d.width) * (depth ? 2 : 3)) png_error(d.png, "unexpected row layout");
   static_assert(sizeof(Rgb8) == 3 && sizeof(unsigned short) == 2);
-  image = ImageT(static_cast<int>(d.width), static_cast<int>(d.height));
-  d.rows.resize(d.height);
+  image.resize_for_overwrite(static_cast<int>(d.width), static_cast<int>(d.height));
+  d.rows->resize(d.height);
   auto* first = reinterpret_cast<std::uint8_t*>(image.data.data());
-  for (std::uint32_t v = 0; v < d.height; ++v) d.rows[v] = first + v * row_bytes;
-  png_read_image(d.png, d.rows.data());
+  for (std::uint32_t v = 0; v < d.height; ++v) (*d.rows)[v] = first + v * row_bytes;
+  png_read_image(d.png, d.rows->data());
   png_read_end(d.png, nullptr);
   return true;
 }
 
-// Decodes a PNG straight into `image` (see read_png).
+// Decodes a PNG straight into `image` (see read_png), libpng's memory from `memory`.
 template <typename ImageT>
-void decode_png(const std::vector<std::uint8_t>& bytes, const std::string& source, ImageT& image) {
+void decode_png(std::span<const std::uint8_t> bytes, const std::string& source, ImageT& image, PngMemory& memory,
+                std::vector<png_bytep>& rows) {
   constexpr bool depth = std::is_same_v<ImageT, DepthImage>;
+  struct ReleaseUnused {  // after libpng's structs have gone back (d's destructor), however it ends
+    PngMemory& memory;
+    ~ReleaseUnused() { memory.release_unused(); }
+  } release_unused{memory};
   PngDecode d;
   d.input = PngSource{bytes.data(), bytes.size()};
-  d.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &d.input, png_on_error, png_on_warning);
+  d.rows = &rows;
+  d.png = png_create_read_struct_2(PNG_LIBPNG_VER_STRING, &d.input, png_on_error, png_on_warning, &memory, png_allocate, png_release);
   if (d.png == nullptr) throw IoError(source + ": libpng could not start");
   d.info = png_create_info_struct(d.png);
   if (d.info == nullptr) throw IoError(source + ": libpng could not start");
@@ -190,7 +277,11 @@ void jpeg_on_message(j_common_ptr jpeg, int level) {
 void jpeg_no_output(j_common_ptr) {}
 
 // Everything a JPEG decode keeps, owned by decode_jpeg (as PngDecode, for the same reasons).
-// libjpeg's destroy is a no-op on the zeroed struct, so the destructor needs no flag.
+// libjpeg's destroy is a no-op on the zeroed struct, so the destructor needs no flag. A new
+// decompressor for every image: libjpeg keeps the Huffman and quantisation tables an image
+// defines for the next (abbreviated streams), so a kept one decoded an image without its own
+// tables (MJPEG's, which rely on the standard ones) through the last image's: other pixels, or
+// "bad Huffman code" (found by the fuzz target's kept decoder).
 struct JpegDecode {
   jpeg_decompress_struct jpeg{};
   JpegErrors errors{};
@@ -201,9 +292,9 @@ struct JpegDecode {
 // Print colour separations, not a camera's image: libjpeg has no conversion to RGB.
 bool is_cmyk(const jpeg_decompress_struct& jpeg) { return jpeg.jpeg_color_space == JCS_CMYK || jpeg.jpeg_color_space == JCS_YCCK; }
 
-// Reads the JPEG of `d` into `color` (resized to it). False when libjpeg reported an error
-// (d.errors.message).
-bool read_jpeg(JpegDecode& d, const std::vector<std::uint8_t>& bytes, ColorImage& color) {
+// Reads the JPEG `bytes` into `color` (resized to it, its buffer reused). False when libjpeg
+// reported an error (d.errors.message).
+bool read_jpeg(JpegDecode& d, std::span<const std::uint8_t> bytes, ColorImage& color) {
   if (setjmp(d.errors.jump) != 0) return false;
   jpeg_create_decompress(&d.jpeg);
   jpeg_mem_src(&d.jpeg, bytes.data(), static_cast<unsigned long>(bytes.size()));
@@ -211,7 +302,7 @@ bool read_jpeg(JpegDecode& d, const std::vector<std::uint8_t>& bytes, ColorImage
   d.jpeg.out_color_space = JCS_RGB;  // grey JPEGs are expanded
   if (!plausible_image_size(d.jpeg.image_width, d.jpeg.image_height) || is_cmyk(d.jpeg)) return true;  // decode_jpeg names either
   jpeg_start_decompress(&d.jpeg);
-  color = ColorImage(static_cast<int>(d.jpeg.output_width), static_cast<int>(d.jpeg.output_height));
+  color.resize_for_overwrite(static_cast<int>(d.jpeg.output_width), static_cast<int>(d.jpeg.output_height));
   static_assert(sizeof(Rgb8) == 3);
   while (d.jpeg.output_scanline < d.jpeg.output_height) {
     JSAMPROW row = reinterpret_cast<JSAMPROW>(color.data.data() + static_cast<size_t>(d.jpeg.output_scanline) * d.jpeg.output_width);
@@ -221,7 +312,7 @@ bool read_jpeg(JpegDecode& d, const std::vector<std::uint8_t>& bytes, ColorImage
   return true;
 }
 
-void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& source, ColorImage& color) {
+void decode_jpeg(std::span<const std::uint8_t> bytes, const std::string& source, ColorImage& color) {
   JpegDecode d;
   d.jpeg.err = jpeg_std_error(&d.errors.manager);
   d.errors.manager.error_exit = jpeg_on_error;
@@ -234,42 +325,64 @@ void decode_jpeg(const std::vector<std::uint8_t>& bytes, const std::string& sour
 
 }  // namespace
 
-DepthImage decode_depth_png(const std::vector<std::uint8_t>& bytes, const std::string& source) {
+struct ImageDecoder::Libraries {
+  std::vector<std::uint8_t> bytes;  // the last file's
+  PngMemory depth_png_memory, color_png_memory;
+  std::vector<png_bytep> png_rows;
+};
+
+ImageDecoder::ImageDecoder() : libraries_(std::make_unique<Libraries>()) {}
+ImageDecoder::~ImageDecoder() = default;
+ImageDecoder::ImageDecoder(ImageDecoder&&) noexcept = default;
+ImageDecoder& ImageDecoder::operator=(ImageDecoder&&) noexcept = default;
+
+void ImageDecoder::decode_depth_png(std::span<const std::uint8_t> bytes, const std::string& source, DepthImage& depth) {
   if (!is_png(bytes)) throw CorruptFile(source + ": not a PNG file (depth must be 16-bit PNG)");
+  decode_png(bytes, source, depth, libraries_->depth_png_memory, libraries_->png_rows);
+}
+
+void ImageDecoder::decode_color_image(std::span<const std::uint8_t> bytes, const std::string& source, ColorImage& color) {
+  if (is_jpeg(bytes)) return decode_jpeg(bytes, source, color);
+  if (!is_png(bytes)) throw CorruptFile(source + ": not a JPEG or PNG file");
+  decode_png(bytes, source, color, libraries_->color_png_memory, libraries_->png_rows);
+}
+
+void ImageDecoder::read_depth_png(const std::string& path, DepthImage& depth) {
+  read_file_bytes(path, libraries_->bytes);
+  decode_depth_png(libraries_->bytes, path, depth);
+}
+
+void ImageDecoder::read_color_image(const std::string& path, ColorImage& color) {
+  read_file_bytes(path, libraries_->bytes);
+  decode_color_image(libraries_->bytes, path, color);
+}
+
+int ImageDecoder::png_memory_blocks() const { return libraries_->depth_png_memory.blocks() + libraries_->color_png_memory.blocks(); }
+
+long ImageDecoder::png_blocks_made() const { return libraries_->depth_png_memory.blocks_made() + libraries_->color_png_memory.blocks_made(); }
+
+DepthImage decode_depth_png(std::span<const std::uint8_t> bytes, const std::string& source) {
   DepthImage depth;
-  decode_png(bytes, source, depth);
+  ImageDecoder().decode_depth_png(bytes, source, depth);
   return depth;
 }
 
 DepthImage read_depth_png(const std::filesystem::path& path) {
-  return decode_depth_png(read_file_bytes(path), path.string());
+  DepthImage depth;
+  ImageDecoder().read_depth_png(path.string(), depth);
+  return depth;
 }
 
-ColorImage decode_color_image(const std::vector<std::uint8_t>& bytes, const std::string& source) {
-  if (is_jpeg(bytes)) {
-    ColorImage color;
-    decode_jpeg(bytes, source, color);
-    return color;
-  }
-  if (!is_png(bytes)) throw CorruptFile(source + ": not a JPEG or PNG file");
+ColorImage decode_color_image(std::span<const std::uint8_t> bytes, const std::string& source) {
   ColorImage color;
-  decode_png(bytes, source, color);
+  ImageDecoder().decode_color_image(bytes, source, color);
   return color;
 }
 
 ColorImage read_color_image(const std::filesystem::path& path) {
-  return decode_color_image(read_file_bytes(path), path.string());
-}
-
-std::optional<std::string> undecodable_reason(const std::function<void()>& read) {
-  try {
-    read();
-  } catch (const CorruptFile& e) {
-    return e.what();
-  } catch (const IoError& e) {
-    return e.what();
-  }
-  return std::nullopt;
+  ColorImage color;
+  ImageDecoder().read_color_image(path.string(), color);
+  return color;
 }
 
 std::vector<std::uint8_t> encode_depth_png(const DepthImage& depth) {

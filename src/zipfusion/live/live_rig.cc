@@ -144,36 +144,49 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
     int delivered = 0;
   };
   auto state = std::make_shared<State>();
-  return [&rig, options = std::move(options), state](double& decode_ms) -> std::optional<FrameSet> {
+  return [&rig, options = std::move(options), state](FrameSet& set, double& decode_ms) {
     const Clock::time_point start = Clock::now();
     if (options.max_frames > 0 && state->delivered >= options.max_frames) {
       rig.stop();
-      return std::nullopt;
+      return false;
     }
     std::optional<LiveFrameSet> live = rig.next();
-    if (!live) return std::nullopt;
+    if (!live) return false;
     if (!state->started) {
       state->started = true;
       state->first_time_s = live->time_s;
     }
     if (options.max_seconds > 0 && live->time_s - state->first_time_s >= options.max_seconds) {
       rig.stop();
-      return std::nullopt;
+      return false;
     }
     if (options.observe) options.observe(*live);
-    FrameSet set;
     set.index = state->delivered++;
+    set.capture_time_ms = 0;
     set.cameras.resize(live->cameras.size());
     for (size_t c = 0; c < live->cameras.size(); ++c) {
+      // What an earlier frame set left goes; an undistorted image is written into the buffer there.
+      CameraFrame& camera = set.cameras[c];
       std::optional<LiveFrame>& frame = live->cameras[c];
-      if (!frame) continue;
-      set.cameras[c].has_depth = true;
-      set.cameras[c].depth = undistort_depth(std::move(frame->depth), options.depth_undistortion, static_cast<int>(c));
-      set.cameras[c].has_color = frame->has_color;
-      if (frame->has_color) set.cameras[c].color = std::move(frame->color);
+      camera.unreadable.clear();
+      camera.has_depth = frame.has_value();
+      camera.has_color = frame && frame->has_color;
+      const bool undistorted = c < options.depth_undistortion.size() && !options.depth_undistortion[c].empty();
+      if (!frame) {
+        camera.depth.resize_for_overwrite(0, 0);
+      } else if (undistorted) {
+        undistort_depth_into(frame->depth, options.depth_undistortion[c], static_cast<int>(c), camera.depth);
+      } else {
+        camera.depth = std::move(frame->depth);
+      }
+      if (camera.has_color) {
+        camera.color = std::move(frame->color);
+      } else {
+        camera.color.resize_for_overwrite(0, 0);
+      }
     }
     decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    return set;
+    return true;
   };
 }
 

@@ -106,12 +106,14 @@ struct LiveSourceOptions {
 
 //! The type of pipeline.h's FrameSource, spelled out because the live layer sits below the
 //! pipeline (it is the same std::function type: run_pipeline takes it as it is).
-using LiveFrameSource = std::function<std::optional<FrameSet>(double& decode_ms)>;
+using LiveFrameSource = std::function<bool(FrameSet& set, double& decode_ms)>;
 
 //! The pipeline's FrameSource over a live rig (use PipelineOptions::source_policy =
 //! QueuePolicy::kDropOldest: the cameras do not wait). Frame sets carry depth in millimetres
 //! (depth_unit_m 0.001) and colour; `decode_ms` is the time spent waiting for and grouping the
-//! set. The rig must outlive the source; the source stops the rig when a limit is reached.
+//! set. The devices' images are moved into `set` (a device allocates each frame's images), but a
+//! depth image that is undistorted is written into the set's own buffer. The rig must outlive
+//! the source; the source stops the rig when a limit is reached.
 LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options = {});
 
 }  // namespace zipfusion

@@ -1,11 +1,11 @@
 #include "zipfusion/pipeline/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <memory>
 #include <thread>
 
-#include "zipfusion/core/parallel.h"
 #include "zipfusion/core/stopwatch.h"
 
 namespace zipfusion {
@@ -34,19 +34,47 @@ class FirstError {
   std::exception_ptr error_;
 };
 
+// Frame sets the reconstruction is done with (or the live queue dropped), for the source to fill
+// again. Never more than the pipeline holds at once (a set being filled, the queue's, the one being
+// reconstructed), so the list never grows past what it reserved.
+class SpareFrameSets {
+ public:
+  explicit SpareFrameSets(int most) : most_(static_cast<size_t>(most)) { spares_.reserve(most_); }
+
+  // A spare, or a new empty set when there is none (the first frame sets).
+  FrameSet take() {
+    std::lock_guard lock(mutex_);
+    if (spares_.empty()) return {};
+    FrameSet set = std::move(spares_.back());
+    spares_.pop_back();
+    return set;
+  }
+
+  void give(FrameSet&& set) {
+    std::lock_guard lock(mutex_);
+    if (spares_.size() < most_) spares_.push_back(std::move(set));
+  }
+
+ private:
+  const size_t most_;
+  std::mutex mutex_;
+  std::vector<FrameSet> spares_;
+};
+
 }  // namespace
 
 FrameSource capture_source(const Capture& capture, int begin, int end) {
-  auto next = std::make_shared<int>(begin);
-  return [&capture, next, end](double& decode_ms) -> std::optional<FrameSet> {
-    if (*next >= end) return std::nullopt;
+  struct State {
+    FrameSetReader reader;
+    int next;
+  };
+  auto state = std::make_shared<State>(State{FrameSetReader(capture), begin});
+  return [state, end](FrameSet& set, double& decode_ms) {
+    if (state->next >= end) return false;
     const Clock::time_point start = Clock::now();
-    FrameSet set;
-    set.index = (*next)++;
-    set.cameras.resize(capture.camera_count());
-    parallel_for(0, capture.camera_count(), [&](int c) { set.cameras[c] = capture.load_camera_frame(set.index, c); });
+    state->reader.read(state->next++, set);
     decode_ms = ms_since(start);
-    return set;
+    return true;
   };
 }
 
@@ -54,6 +82,7 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
                            const PipelineOptions& options) {
   BoundedQueue<DecodedFrame> decoded(options.queue_depth, options.source_policy);
   BoundedQueue<PipelineFrame> reconstructed(options.queue_depth, QueuePolicy::kBlock);
+  SpareFrameSets spares(std::max(options.queue_depth, 1) + 2);
   FirstError error;
   PipelineStats stats;
   const Clock::time_point start = Clock::now();
@@ -62,10 +91,11 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
     try {
       while (true) {
         DecodedFrame item;
-        std::optional<FrameSet> frames = source(item.decode_ms);
-        if (!frames) break;
-        item.frames = std::move(*frames);
-        if (!decoded.push(std::move(item))) break;  // closed: a later stage failed
+        item.frames = spares.take();
+        if (!source(item.frames, item.decode_ms)) break;
+        std::optional<DecodedFrame> dropped;
+        if (!decoded.push(std::move(item), &dropped)) break;  // closed: a later stage failed
+        if (dropped) spares.give(std::move(dropped->frames));
       }
     } catch (...) {
       error.set(std::current_exception());
@@ -106,6 +136,7 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
       if (options.before_reconstruct) options.before_reconstruct(item->frames, reconstructor);
       if (options.wants_frame && !options.wants_frame()) {
         ++stats.unwanted;
+        spares.give(std::move(item->frames));
         continue;
       }
       PipelineFrame frame{.index = item->frames.index,
@@ -113,6 +144,7 @@ PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& recons
                           .capture_time_ms = item->frames.capture_time_ms,
                           .decode_ms = item->decode_ms,
                           .result = reconstructor.reconstruct(item->frames)};
+      spares.give(std::move(item->frames));
       if (!reconstructed.push(std::move(frame))) break;
       ++stats.frames;
     }

@@ -18,10 +18,10 @@
 //! reconstructor (FrameReconstructor::recycle) while it reconstructs the next.
 
 #include <condition_variable>
-#include <deque>
 #include <functional>
 #include <mutex>
 #include <optional>
+#include <vector>
 
 #include "zipfusion/io/capture.h"
 #include "zipfusion/pipeline/reconstruct.h"
@@ -33,22 +33,29 @@ enum class QueuePolicy {
   kDropOldest,  // push discards the oldest item: the newest is never late (live)
 };
 
-//! A bounded multi-producer, multi-consumer queue that can be closed.
+//! A bounded multi-producer, multi-consumer queue that can be closed. Its items live in a ring of
+//! `capacity` slots made up front, so pushing and popping allocate nothing (a std::deque takes and
+//! frees a block every few items as they pass through).
 template <typename T>
 class BoundedQueue {
  public:
-  BoundedQueue(int capacity, QueuePolicy policy) : capacity_(capacity < 1 ? 1 : capacity), policy_(policy) {}
+  BoundedQueue(int capacity, QueuePolicy policy) : slots_(capacity < 1 ? 1 : capacity), policy_(policy) {}
 
-  //! Adds an item; false when the queue was closed (the item is dropped).
-  bool push(T item) {
+  //! Adds an item; false when the queue was closed (the item is dropped). The oldest item, where
+  //! kDropOldest discards one, goes to `displaced` when given (for its buffers to be reused).
+  bool push(T item, std::optional<T>* displaced = nullptr) {
     std::unique_lock lock(mutex_);
-    if (policy_ == QueuePolicy::kBlock) not_full_.wait(lock, [&] { return closed_ || static_cast<int>(items_.size()) < capacity_; });
+    if (policy_ == QueuePolicy::kBlock) not_full_.wait(lock, [&] { return closed_ || count_ < capacity(); });
     if (closed_) return false;
-    if (static_cast<int>(items_.size()) >= capacity_) {  // kDropOldest
-      items_.pop_front();
+    if (count_ >= capacity()) {  // kDropOldest
+      if (displaced != nullptr) *displaced = std::move(slots_[head_]);
+      slots_[head_].reset();
+      head_ = (head_ + 1) % capacity();
+      --count_;
       ++dropped_;
     }
-    items_.push_back(std::move(item));
+    slots_[(head_ + count_) % capacity()].emplace(std::move(item));
+    ++count_;
     not_empty_.notify_one();
     return true;
   }
@@ -56,10 +63,12 @@ class BoundedQueue {
   //! The oldest item; empty once the queue is closed and drained.
   std::optional<T> pop() {
     std::unique_lock lock(mutex_);
-    not_empty_.wait(lock, [&] { return closed_ || !items_.empty(); });
-    if (items_.empty()) return std::nullopt;
-    T item = std::move(items_.front());
-    items_.pop_front();
+    not_empty_.wait(lock, [&] { return closed_ || count_ > 0; });
+    if (count_ == 0) return std::nullopt;
+    std::optional<T> item = std::move(slots_[head_]);
+    slots_[head_].reset();
+    head_ = (head_ + 1) % capacity();
+    --count_;
     not_full_.notify_all();  // a producer waiting for room, and one waiting for the queue to empty
     return item;
   }
@@ -67,7 +76,7 @@ class BoundedQueue {
   //! Waits until the queue is empty; false when it was closed.
   bool wait_until_empty() {
     std::unique_lock lock(mutex_);
-    not_full_.wait(lock, [&] { return closed_ || items_.empty(); });
+    not_full_.wait(lock, [&] { return closed_ || count_ == 0; });
     return !closed_;
   }
 
@@ -85,20 +94,27 @@ class BoundedQueue {
   }
 
  private:
-  const int capacity_;
+  int capacity() const { return static_cast<int>(slots_.size()); }
+
+  std::vector<std::optional<T>> slots_;
+  int head_ = 0;   // the oldest item's slot
+  int count_ = 0;  // items in the queue
   const QueuePolicy policy_;
   mutable std::mutex mutex_;
   std::condition_variable not_empty_, not_full_;
-  std::deque<T> items_;
   bool closed_ = false;
   long dropped_ = 0;
 };
 
-//! Where frame sets come from: returns the next one, or nothing at the end of the stream.
-//! `decode_ms` receives the time spent decoding it.
-using FrameSource = std::function<std::optional<FrameSet>(double& decode_ms)>;
+//! Where frame sets come from: fills `set` with the next one and returns true, or returns false at
+//! the end of the stream. `set` holds an earlier frame set (or none): a source reuses its buffers,
+//! and sets every field (index, capture time, each camera's images and flags). `decode_ms`
+//! receives the time spent decoding it.
+using FrameSource = std::function<bool(FrameSet& set, double& decode_ms)>;
 
-//! A source over frames [begin, end) of a capture; each frame set's cameras decode in parallel.
+//! A source over frames [begin, end) of a capture (a FrameSetReader): each frame set's cameras
+//! decode in parallel into the buffers of the set handed in, so in the pipeline, which hands back
+//! the sets it is done with, decoding allocates nothing in steady state.
 FrameSource capture_source(const Capture& capture, int begin, int end);
 
 //! One reconstructed frame set, as the sink sees it.
@@ -135,7 +151,9 @@ struct PipelineStats {
 
 //! Runs source → reconstructor → sink until the source ends. After the sink returns, the frame's
 //! mesh goes back to the reconstructor for reuse (FrameReconstructor::recycle): a sink that keeps
-//! it moves it out. An exception in any stage stops the
+//! it moves it out. Each frame set, once reconstructed (or skipped), goes back to the source
+//! thread, which hands it to the source to fill again: at most queue_depth + 2 frame sets exist
+//! at once, and in steady state none is allocated. An exception in any stage stops the
 //! pipeline and is rethrown here (the first one).
 PipelineStats run_pipeline(const FrameSource& source, FrameReconstructor& reconstructor, const std::function<void(PipelineFrame&)>& sink,
                            const PipelineOptions& options = {});

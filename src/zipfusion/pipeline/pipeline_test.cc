@@ -38,8 +38,14 @@ TEST(BoundedQueue, WaitUntilEmptyReturnsOnceDrainedAndFalseOnceClosed) {
 
 TEST(BoundedQueue, LiveQueueDropsTheOldest) {
   BoundedQueue<int> queue(3, QueuePolicy::kDropOldest);
-  for (int i = 0; i < 10; ++i) EXPECT_TRUE(queue.push(i));  // never waits
+  std::vector<int> displaced_items;  // handed back, for the pipeline to reuse their buffers
+  for (int i = 0; i < 10; ++i) {
+    std::optional<int> displaced;
+    EXPECT_TRUE(queue.push(i, &displaced));  // never waits
+    if (displaced) displaced_items.push_back(*displaced);
+  }
   EXPECT_EQ(queue.dropped(), 7);
+  EXPECT_EQ(displaced_items, (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
   queue.close();
   EXPECT_FALSE(queue.push(10));
   for (int expected : {7, 8, 9}) EXPECT_EQ(queue.pop(), expected);
@@ -49,14 +55,14 @@ TEST(BoundedQueue, LiveQueueDropsTheOldest) {
 // Frame sets without depth: the pipeline's plumbing, not the reconstruction, is under test.
 FrameSource empty_frames(int count, int cameras, std::atomic<int>* produced = nullptr) {
   auto next = std::make_shared<int>(0);
-  return [=](double& decode_ms) -> std::optional<FrameSet> {
-    if (*next >= count) return std::nullopt;
+  return [=](FrameSet& set, double& decode_ms) {
+    if (*next >= count) return false;
     decode_ms = 0;
     if (produced) ++*produced;
-    FrameSet set;
+    set = FrameSet{};
     set.index = (*next)++;
     set.cameras.resize(cameras);
-    return set;
+    return true;
   };
 }
 
@@ -92,11 +98,10 @@ TEST_F(PipelineTest, SinkErrorStopsThePipelineAndIsRethrown) {
 }
 
 TEST_F(PipelineTest, SourceErrorIsRethrown) {
-  auto failing = [n = 0](double&) mutable -> std::optional<FrameSet> {
+  auto failing = [n = 0](FrameSet& set, double&) mutable {
     if (++n == 4) throw InvalidInput("frame 3: corrupt");
-    FrameSet set;
     set.cameras.resize(3);
-    return set;
+    return true;
   };
   EXPECT_THROW(run_pipeline(failing, reconstructor, [](PipelineFrame&) {}), InvalidInput);
 }
@@ -134,9 +139,9 @@ TEST_F(PipelineTest, LiveReconstructionTakesAFrameSetOnlyWhenTheSinkHasRoom) {
   options.before_reconstruct = [&](const FrameSet& frames, FrameReconstructor&) { done_when_taken[frames.index] = sink_calls_done; };
   int most_calls_waited = 0;
   int sunk = 0;
-  FrameSource frames_every_200us = [source = empty_frames(200, 3)](double& decode_ms) {
+  FrameSource frames_every_200us = [source = empty_frames(200, 3)](FrameSet& set, double& decode_ms) {
     std::this_thread::sleep_for(std::chrono::microseconds(200));  // a camera: the frames keep coming
-    return source(decode_ms);
+    return source(set, decode_ms);
   };
   run_pipeline(
       frames_every_200us, reconstructor,

@@ -12,10 +12,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Meshes kept for reuse: as many as the pipeline holds while the next is built with its default
-// queue (PipelineOptions::queue_depth 2, plus the one in the sink); a deeper queue allocates the
-// difference.
-constexpr size_t kSpareMeshes = 3;
+// Meshes kept for reuse: as many as exist at once with the pipeline's default queue
+// (PipelineOptions::queue_depth 2, the one in the sink, the one being built), so that none is
+// freed when all come back at once (the reconstruction waiting for decoding) and made anew when the
+// queue fills again; a deeper queue allocates the difference.
+constexpr size_t kSpareMeshes = 4;
 
 double elapsed_ms(Clock::time_point since) { return std::chrono::duration<double, std::milli>(Clock::now() - since).count(); }
 
@@ -63,6 +64,7 @@ FrameReconstructor::FrameReconstructor(const Rig& rig, const ReconstructOptions&
       kernel_(options_.filter),
       cameras_(rig.cameras.size()) {
   if (options_.depth_level > 0) full_resolution_cameras_ = rig.cameras;
+  spare_meshes_.reserve(kSpareMeshes);
   for (size_t c = 0; c < cameras_.size(); ++c) {
     cameras_[c].sdc = options_.sdc;
     cameras_[c].sdc.max_depth_jump_m = sdc_depth_jump(options_.sdc.max_depth_jump_m, rig_.cameras[c].depth_intrinsics);
@@ -87,15 +89,22 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
   const Clock::time_point start = Clock::now();
   FrameResult result;
   {
+    // The longest-kept spare first, so that every mesh goes round and none lies unused until a
+    // change of pace in the pipeline takes it (and grows it then).
     std::lock_guard lock(spare_mutex_);
     if (!spare_meshes_.empty()) {
-      result.mesh = std::move(spare_meshes_.back());
-      spare_meshes_.pop_back();
+      result.mesh = std::move(spare_meshes_.front());
+      spare_meshes_.erase(spare_meshes_.begin());
     }
   }
   result.mesh.positions.clear();
   result.mesh.colors.clear();
   result.mesh.triangles.clear();
+  // Grown at once to the largest mesh built so far: which mesh a frame set gets must not decide
+  // whether it allocates (a mesh that last held a small frame set, taking a large one).
+  result.mesh.positions.reserve(most_mesh_capacity_.positions);
+  result.mesh.colors.reserve(most_mesh_capacity_.colors);
+  result.mesh.triangles.reserve(most_mesh_capacity_.triangles);
   const int camera_count = static_cast<int>(rig_.cameras.size());
   std::vector<char>& active = active_;
   active.assign(camera_count, 0);
@@ -171,6 +180,9 @@ FrameResult FrameReconstructor::reconstruct(const FrameSet& frames) {
     result.small_component_triangles = remove_small_components(result.mesh, options_.min_component_triangles, components_);
     result.times.assemble_ms += elapsed_ms(pieces_start);
   }
+  most_mesh_capacity_.positions = std::max(most_mesh_capacity_.positions, result.mesh.positions.capacity());
+  most_mesh_capacity_.colors = std::max(most_mesh_capacity_.colors, result.mesh.colors.capacity());
+  most_mesh_capacity_.triangles = std::max(most_mesh_capacity_.triangles, result.mesh.triangles.capacity());
   result.times.total_ms = elapsed_ms(start);
   return result;
 }

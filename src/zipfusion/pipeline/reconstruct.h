@@ -141,7 +141,10 @@ class FrameReconstructor {
   ZipperScratch zipper_scratch_;
   MeshComponents components_;  // remove_small_components' scratch
   std::mutex spare_mutex_;
-  std::vector<TriangleMesh> spare_meshes_;  // recycled, at most kSpareMeshes
+  std::vector<TriangleMesh> spare_meshes_;  // recycled, at most kSpareMeshes, the longest kept first
+  struct {
+    size_t positions = 0, colors = 0, triangles = 0;
+  } most_mesh_capacity_;  // the largest capacities a mesh has had (reconstruct() only)
 };
 
 }  // namespace zipfusion
