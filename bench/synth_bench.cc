@@ -59,25 +59,24 @@ BENCHMARK(BM_DecodeColorJpeg)->Unit(benchmark::kMillisecond);
 
 // The same two decodes as the pipeline makes them: one ImageDecoder, into the same image each
 // time (its buffers, and libpng's memory, kept).
-void BM_DecodeDepthPngReused(benchmark::State& state) {
-  const std::vector<std::uint8_t> png = encode_depth_png(scene().view.depth);
+template <typename ImageT>
+void decode_reused(benchmark::State& state, const std::vector<std::uint8_t>& bytes,
+                   void (ImageDecoder::*decode)(std::span<const std::uint8_t>, const std::string&, ImageT&)) {
   ImageDecoder decoder;
-  DepthImage depth;
+  ImageT image;
   for (auto _ : state) {
-    decoder.decode_depth_png(png, "bench", depth);
-    benchmark::DoNotOptimize(depth.data.data());
+    (decoder.*decode)(bytes, "bench", image);
+    benchmark::DoNotOptimize(image.data.data());
   }
+}
+
+void BM_DecodeDepthPngReused(benchmark::State& state) {
+  decode_reused(state, encode_depth_png(scene().view.depth), &ImageDecoder::decode_depth_png);
 }
 BENCHMARK(BM_DecodeDepthPngReused)->Unit(benchmark::kMillisecond);
 
 void BM_DecodeColorJpegReused(benchmark::State& state) {
-  const std::vector<std::uint8_t> jpg = encode_color_image(scene().view.color, ".jpg", 90);
-  ImageDecoder decoder;
-  ColorImage color;
-  for (auto _ : state) {
-    decoder.decode_color_image(jpg, "bench", color);
-    benchmark::DoNotOptimize(color.data.data());
-  }
+  decode_reused(state, encode_color_image(scene().view.color, ".jpg", 90), &ImageDecoder::decode_color_image);
 }
 BENCHMARK(BM_DecodeColorJpegReused)->Unit(benchmark::kMillisecond);
 
