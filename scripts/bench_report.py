@@ -250,7 +250,7 @@ def main(folder):
     out += ["## Per stage on samba-4cam (the paper's Table IV)", "",
             f"`zipfusion bench ../shared/data/samba-4cam --rig ../shared/data/samba-4cam/ground_truth/rig.json --frames {samba['frames']} "
             f"--repeat {samba['repeat']} --soak {(samba.get('soak') or {}).get('frames', 0)}`: {samba['cameras']} cameras, depth {samba['depth_size']}. "
-            f"Decoding the PNG depth and JPEG colour of a frame set (cameras in parallel): {ms(samba['decode_ms'])} ms.", ""]
+            f"Decoding the PNG depth and JPEG colour of a frame set (cameras in parallel, into the images of the frame set before, as the pipeline does): {ms(samba['decode_ms'])} ms.", ""]
     out += stage_table(samba, ["zipper+filter", "zipper+separable filter", "zipper+5x5 filter", "zipper", "zipper border ownership",
                                "separate+filter", "separate+5x5 filter", "separate"])
     out += ["", "Without the filter (\"zipper\") ownership is by smoothness, the default there (`--ownership auto`); "
