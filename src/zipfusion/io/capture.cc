@@ -31,6 +31,18 @@ bool frame_file_present(const std::string& file) {
   throw IoError(file + ": " + std::strerror(error));
 }
 
+// Empties the image of a file left out. Its buffer stays for the next frame, unless a corrupt
+// file's header made it larger than the camera's images (a bogus size would otherwise hold its
+// memory for the rest of the run).
+template <typename T>
+void leave_out(Image<T>& image, const Intrinsics& camera) {
+  if (image.data.capacity() > static_cast<size_t>(camera.width) * camera.height) {
+    image = Image<T>();
+  } else {
+    image.resize_for_overwrite(0, 0);
+  }
+}
+
 // `folder` (which ends in a separator) + frame_file_name(frame, extension), into `out`, whose
 // buffer is reused.
 void frame_file_path(const std::string& folder, int frame, const char* extension, std::string& out) {
@@ -329,7 +341,7 @@ void Capture::load_camera_frame(int frame, int camera, CameraFrame& out, CameraF
   } else if (options_.strict) {
     throw InvalidInput(file + ": missing frame");
   }
-  if (!out.has_depth) out.depth.resize_for_overwrite(0, 0);  // missing, or half decoded
+  if (!out.has_depth) leave_out(out.depth, model.depth_intrinsics);  // missing, or half decoded
   if (with_color && model.has_color()) {
     const ColorFile kind = color_file_.at(camera).at(frame);
     if (kind != ColorFile::kNone) frame_file_path(frame_folders_[camera].color, frame, kind == ColorFile::kJpg ? ".jpg" : ".png", file);
@@ -342,7 +354,7 @@ void Capture::load_camera_frame(int frame, int camera, CameraFrame& out, CameraF
       throw InvalidInput((dir_ / model.name / "color" / frame_file_name(frame, ".jpg")).string() + ": missing frame");
     }
   }
-  if (!out.has_color) out.color.resize_for_overwrite(0, 0);
+  if (!out.has_color) leave_out(out.color, model.has_color() ? *model.color_intrinsics : Intrinsics{});
 }
 
 std::vector<std::string> unreadable_files(const FrameSet& set) {

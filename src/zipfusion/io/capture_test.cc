@@ -12,6 +12,7 @@
 
 #include <cstdlib>
 #include <functional>
+#include <span>
 #include <string_view>
 #include <typeinfo>
 #include <opencv2/imgcodecs.hpp>
@@ -198,6 +199,25 @@ TEST_F(SmallCapture, AReusedFrameSetHoldsWhatAFreshLoadGives) {
   }
   EXPECT_FALSE(set.cameras[0].has_color);  // frame 1, read last
   EXPECT_TRUE(set.cameras[0].color.empty());
+}
+
+// A corrupt depth file whose header claims a far larger image than the camera's: the decoder makes
+// room for it before the data runs out. Left out, that room goes, not kept in the reused set for
+// the rest of the run.
+TEST_F(SmallCapture, ACorruptFilesClaimedSizeIsNotKept) {
+  const std::vector<std::uint8_t> large = encode_depth_png(ramp_depth(2000, 1500, 7));
+  const fs::path depth = dir_ / "b" / "depth" / "000001.png";
+  write_file_atomic(depth, std::span<const std::uint8_t>(large.data(), 200));  // the header and a little of the data
+  const Capture capture = Capture::open(dir_);
+  FrameSetReader reader(capture);
+  FrameSet set;
+  reader.read(0, set);
+  reader.read(1, set);
+  EXPECT_FALSE(set.cameras[1].has_depth);
+  ASSERT_EQ(unreadable_files(set).size(), 1u);
+  EXPECT_LE(set.cameras[1].depth.data.capacity(), static_cast<size_t>(kWidth) * kHeight);
+  reader.read(2, set);
+  EXPECT_EQ(set.cameras[1].depth, ramp_depth(kWidth, kHeight, 2));
 }
 
 // A frame "file" that cannot be read (here a folder) is left out like an undecodable one.
