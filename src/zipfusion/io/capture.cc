@@ -44,12 +44,10 @@ void leave_out(Image<T>& image, const Intrinsics& camera) {
 }
 
 // `folder` (which ends in a separator) + frame_file_name(frame, extension), into `out`, whose
-// buffer is reused.
+// buffer is reused (the name is short enough for std::string's own buffer: no allocation).
 void frame_file_path(const std::string& folder, int frame, const char* extension, std::string& out) {
-  char name[32];
-  std::snprintf(name, sizeof name, "%06d%s", frame, extension);
   out.assign(folder);
-  out.append(name);
+  out.append(frame_file_name(frame, extension));
 }
 
 void check_size(const std::string& file, int width, int height, const Intrinsics& k, const char* field) {
@@ -128,6 +126,10 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   capture.rig_ = read_rig(rig_path);
   const Rig& rig = capture.rig_;
   const int frames = rig.frame_count;
+  for (const CameraModel& camera : rig.cameras) {
+    // Appending an empty name ends each in a separator, as a join with a file name puts one.
+    capture.frame_folders_.push_back({(dir / camera.name / "depth" / "").string(), (dir / camera.name / "color" / "").string()});
+  }
 
   int last_frame_seen = -1;
   std::vector<std::vector<std::pair<int, std::string>>> depth_files(rig.cameras.size()), color_files(rig.cameras.size());
@@ -191,10 +193,6 @@ Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   }
   capture.has_ground_truth_meshes_ = fs::is_directory(dir / "ground_truth" / "mesh", ec);
   capture.depth_undistortion_ = depth_undistortion_maps(capture.rig_);
-  for (const CameraModel& camera : rig.cameras) {
-    // Appending an empty name ends each in a separator, as depth_path()'s join would put one.
-    capture.frame_folders_.push_back({(dir / camera.name / "depth" / "").string(), (dir / camera.name / "color" / "").string()});
-  }
   return capture;
 }
 
@@ -283,13 +281,17 @@ fs::path Capture::ground_truth_mesh_path(int frame) const {
 }
 
 fs::path Capture::depth_path(int frame, int camera) const {
-  return dir_ / rig_.cameras.at(camera).name / "depth" / frame_file_name(frame, ".png");
+  std::string path;
+  frame_file_path(frame_folders_.at(camera).depth, frame, ".png", path);
+  return path;
 }
 
 fs::path Capture::color_path(int frame, int camera) const {
   const ColorFile file = color_file_.at(camera).at(frame);
   if (file == ColorFile::kNone) return {};
-  return dir_ / rig_.cameras[camera].name / "color" / frame_file_name(frame, file == ColorFile::kJpg ? ".jpg" : ".png");
+  std::string path;
+  frame_file_path(frame_folders_[camera].color, frame, extension_of(file), path);
+  return path;
 }
 
 CameraFrame Capture::load_camera_frame(int frame, int camera) const {
@@ -344,7 +346,7 @@ void Capture::load_camera_frame(int frame, int camera, CameraFrame& out, CameraF
   if (!out.has_depth) leave_out(out.depth, model.depth_intrinsics);  // missing, or half decoded
   if (with_color && model.has_color()) {
     const ColorFile kind = color_file_.at(camera).at(frame);
-    if (kind != ColorFile::kNone) frame_file_path(frame_folders_[camera].color, frame, kind == ColorFile::kJpg ? ".jpg" : ".png", file);
+    if (kind != ColorFile::kNone) frame_file_path(frame_folders_[camera].color, frame, extension_of(kind), file);
     if (kind != ColorFile::kNone && frame_file_present(file)) {
       out.has_color = decode_or_leave_out([&] {
         scratch.decoder.read_color_image(file, out.color);

@@ -129,8 +129,9 @@ class Capture {
   bool has_ground_truth_meshes_ = false;
   std::vector<MissingFrame> missing_;
   enum class ColorFile : std::uint8_t { kNone, kJpg, kPng };
+  static const char* extension_of(ColorFile file) { return file == ColorFile::kJpg ? ".jpg" : ".png"; }
   struct FrameFolders {
-    std::string depth, color;  // each ends in a separator
+    std::string depth, color;  // each ends in a separator; the frame files' names follow
   };
   std::vector<FrameFolders> frame_folders_;  // per camera
   std::vector<std::vector<ColorFile>> color_file_;  // [camera][frame]

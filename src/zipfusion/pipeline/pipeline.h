@@ -48,10 +48,8 @@ class BoundedQueue {
     if (policy_ == QueuePolicy::kBlock) not_full_.wait(lock, [&] { return closed_ || count_ < capacity(); });
     if (closed_) return false;
     if (count_ >= capacity()) {  // kDropOldest
-      if (displaced != nullptr) *displaced = std::move(slots_[head_]);
-      slots_[head_].reset();
-      head_ = (head_ + 1) % capacity();
-      --count_;
+      std::optional<T> oldest = take_oldest();
+      if (displaced != nullptr) *displaced = std::move(oldest);
       ++dropped_;
     }
     slots_[(head_ + count_) % capacity()].emplace(std::move(item));
@@ -65,10 +63,7 @@ class BoundedQueue {
     std::unique_lock lock(mutex_);
     not_empty_.wait(lock, [&] { return closed_ || count_ > 0; });
     if (count_ == 0) return std::nullopt;
-    std::optional<T> item = std::move(slots_[head_]);
-    slots_[head_].reset();
-    head_ = (head_ + 1) % capacity();
-    --count_;
+    std::optional<T> item = take_oldest();
     not_full_.notify_all();  // a producer waiting for room, and one waiting for the queue to empty
     return item;
   }
@@ -95,6 +90,15 @@ class BoundedQueue {
 
  private:
   int capacity() const { return static_cast<int>(slots_.size()); }
+
+  // Moves the oldest item out of its slot and frees the slot. Precondition: locked, count_ > 0.
+  std::optional<T> take_oldest() {
+    std::optional<T> item = std::move(slots_[head_]);
+    slots_[head_].reset();
+    head_ = (head_ + 1) % capacity();
+    --count_;
+    return item;
+  }
 
   std::vector<std::optional<T>> slots_;
   int head_ = 0;   // the oldest item's slot
