@@ -35,12 +35,14 @@ std::span<const std::uint8_t> payload(std::span<const std::uint8_t> bytes, const
   const size_t max_header = std::min<size_t>(bytes.size(), 64);
   while (newline < max_header && bytes[newline] != '\n') ++newline;
   if (newline >= max_header) throw InvalidInput(source + ": header: expected one line \"" + magic + " 640 480 MAXVAL\" followed by a newline");
-  const std::string header(reinterpret_cast<const char*>(bytes.data()), newline);
+  char header[64];  // not a std::string: "P5 640 480 65535" is past its inline capacity, and a replay decodes a frame at a time
+  std::memcpy(header, bytes.data(), newline);
+  header[newline] = 0;
   char kind[3] = {0, 0, 0};
   int width = 0, height = 0, maxval = 0;
   char tail = 0;
-  if (std::sscanf(header.c_str(), "%2s %d %d %d %c", kind, &width, &height, &maxval, &tail) != 4 || std::strcmp(kind, magic) != 0) {
-    throw InvalidInput(source + ": header: expected \"" + magic + " 640 480 MAXVAL\", got \"" + printable_excerpt(header) + "\"");
+  if (std::sscanf(header, "%2s %d %d %d %c", kind, &width, &height, &maxval, &tail) != 4 || std::strcmp(kind, magic) != 0) {
+    throw InvalidInput(source + ": header: expected \"" + magic + " 640 480 MAXVAL\", got \"" + printable_excerpt(std::string(header, newline)) + "\"");
   }
   if (maxval != expected_maxval) {
     throw InvalidInput(source + ": header: MAXVAL is " + std::to_string(maxval) + ", fakenect writes " + std::to_string(expected_maxval));
@@ -132,8 +134,14 @@ std::vector<std::uint8_t> encode_fakenect_rgb(const ColorImage& color) {
 }
 
 RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source) {
+  RawDepthImage raw;
+  decode_fakenect_depth(bytes, source, raw);
+  return raw;
+}
+
+void decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source, RawDepthImage& raw) {
   const std::span<const std::uint8_t> data = payload(bytes, "P5", 2, 65535, source);
-  RawDepthImage raw(kFakenectWidth, kFakenectHeight);
+  raw.resize_for_overwrite(kFakenectWidth, kFakenectHeight);
   std::uint16_t largest = 0;
   for (size_t i = 0; i < raw.data.size(); ++i) {
     raw.data[i] = static_cast<std::uint16_t>(data[2 * i] | (data[2 * i + 1] << 8));
@@ -144,14 +152,18 @@ RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const s
   if (largest > kKinectRawNoValue) {
     throw InvalidInput(source + ": pixels: value " + std::to_string(largest) + " above 2047 is not 11-bit Kinect depth (a big-endian PGM?)");
   }
-  return raw;
 }
 
 ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source) {
-  const std::span<const std::uint8_t> data = payload(bytes, "P6", 3, 255, source);
-  ColorImage color(kFakenectWidth, kFakenectHeight);
-  std::memcpy(color.data.data(), data.data(), data.size());
+  ColorImage color;
+  decode_fakenect_rgb(bytes, source, color);
   return color;
+}
+
+void decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source, ColorImage& color) {
+  const std::span<const std::uint8_t> data = payload(bytes, "P6", 3, 255, source);
+  color.resize_for_overwrite(kFakenectWidth, kFakenectHeight);
+  std::memcpy(color.data.data(), data.data(), data.size());
 }
 
 size_t fakenect_playable_entries(const fs::path& dir, const std::vector<FakenectIndexEntry>& entries, std::string& problem) {

@@ -58,6 +58,10 @@ std::vector<std::uint8_t> encode_fakenect_rgb(const ColorImage& color);
 //! N of 614400 bytes").
 RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source);
 ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source);
+//! The same into an image whose buffer is reused (a replay, frame after frame). On a throw the
+//! image's pixels are unspecified.
+void decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source, RawDepthImage& raw);
+void decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source, ColorImage& color);
 
 //! How many leading entries fakenect can replay: it stops (exits the process, or reads past its
 //! buffer) at the first listed file that is missing, or, for depth and colour, shorter than its

@@ -5,10 +5,13 @@
 
 namespace zipfusion {
 
-GroupStep next_group(std::span<const StreamView> streams, double period_s, double not_before_s) {
+void next_group(std::span<const StreamView> streams, double period_s, double not_before_s, GroupStep& step) {
   assert(period_s > 0);
   const int n = static_cast<int>(streams.size());
-  GroupStep step;
+  step.status = GroupStep::kDone;
+  step.wait_for = -1;
+  step.time_s = step.skew_s = 0;
+  step.member.clear();
   step.discard.assign(n, 0);
   // Skip what is too late; find the anchor: the earliest remaining pending frame.
   int anchor = -1;
@@ -29,13 +32,10 @@ GroupStep next_group(std::span<const StreamView> streams, double period_s, doubl
     if (streams[c].open && step.discard[c] == static_cast<int>(streams[c].pending_times.size())) {
       step.status = GroupStep::kWait;
       step.wait_for = c;
-      return step;
+      return;
     }
   }
-  if (anchor < 0) {
-    step.status = GroupStep::kDone;
-    return step;
-  }
+  if (anchor < 0) return;  // kDone
   step.status = GroupStep::kReady;
   step.time_s = t0;
   step.member.assign(n, 0);
@@ -50,7 +50,6 @@ GroupStep next_group(std::span<const StreamView> streams, double period_s, doubl
     }
   }
   step.skew_s = latest - t0;
-  return step;
 }
 
 std::vector<FrameGroup> group_frames(const std::vector<std::vector<double>>& times, double period_s) {

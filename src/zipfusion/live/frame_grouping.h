@@ -42,9 +42,15 @@ struct GroupStep {
 
 //! The next grouping decision. `not_before_s`: the previous set's t0 + period_s/2 (−infinity
 //! before the first set); pending frames earlier than it are reported in `discard` and ignored.
-//! Precondition: period_s > 0, each pending_times ascending.
-GroupStep next_group(std::span<const StreamView> streams, double period_s,
-                     double not_before_s = -std::numeric_limits<double>::infinity());
+//! Precondition: period_s > 0, each pending_times ascending. Written into `step`, whose vectors
+//! keep their memory from one decision to the next (the live rig decides one per frame).
+void next_group(std::span<const StreamView> streams, double period_s, double not_before_s, GroupStep& step);
+inline GroupStep next_group(std::span<const StreamView> streams, double period_s,
+                            double not_before_s = -std::numeric_limits<double>::infinity()) {
+  GroupStep step;
+  next_group(streams, period_s, not_before_s, step);
+  return step;
+}
 
 //! One frame set of group_frames().
 struct FrameGroup {

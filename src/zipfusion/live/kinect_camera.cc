@@ -10,7 +10,6 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <cstring>
-#include <deque>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -19,6 +18,7 @@
 #include "zipfusion/live/fakenect_dump.h"
 #include "zipfusion/live/kinect_clock.h"
 #include "zipfusion/live/kinect_disparity.h"
+#include "zipfusion/live/live_frame_queue.h"
 
 namespace zipfusion {
 namespace {
@@ -59,25 +59,27 @@ std::string last_error() {
 
 // One device's stream: the event thread produces into it, the camera's reader consumes.
 struct Slot {
+  explicit Slot(int max_queued_frames) : queue(max_queued_frames) {}
+
   freenect_device* device = nullptr;
   int index = 0;
   std::string serial;
   CameraModel model;
   bool raw = false;
   int width = 640, height = 480;
-  int max_queued_frames = 60;
   double max_color_age_s = 0.04;
   bool started = false;
   std::atomic<bool> stop_requested{false};
 
   std::mutex mutex;  // guards the consumer-visible state below
   std::condition_variable changed;
-  std::deque<LiveFrame> queue;
+  LiveFrameQueue queue;
   bool ended = false;
   std::string end_reason;
   long dropped = 0;
 
   // Event thread only.
+  LiveFrame filling;  // the next depth frame, in the images of a frame read earlier (LiveFrameQueue)
   ColorImage color;
   bool has_color = false;
   std::uint32_t color_timestamp = 0;  // the device clock's, as depth's
@@ -183,10 +185,10 @@ struct Context {
 void Context::on_depth(freenect_device* device, void* data, std::uint32_t timestamp) {
   Slot& slot = *static_cast<Slot*>(freenect_get_user(device));
   if (slot.stop_requested) return;
-  LiveFrame frame;
+  LiveFrame& frame = slot.filling;
   frame.time_s = now_s();
   frame.device_timestamp = timestamp;
-  frame.depth.resize(slot.width, slot.height);
+  frame.depth.resize_for_overwrite(slot.width, slot.height);
   const int n = slot.width * slot.height;
   if (slot.raw) {
     kinect_raw_frame_to_mm(n, static_cast<const std::uint16_t*>(data), frame.depth.data.data());
@@ -194,16 +196,12 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
     std::memcpy(frame.depth.data.data(), data, static_cast<size_t>(n) * sizeof(std::uint16_t));
   }
   frame.has_color = slot.has_color && kinect_color_pairs_with_depth(slot.color_timestamp, timestamp, slot.max_color_age_s);
-  if (frame.has_color) frame.color = slot.color;
+  if (frame.has_color) frame.color = slot.color;  // into the frame's own buffer
   slot.last_depth_s = frame.time_s;
   slot.had_depth = true;
   std::lock_guard lock(slot.mutex);
   if (slot.ended) return;
-  if (static_cast<int>(slot.queue.size()) >= slot.max_queued_frames) {
-    slot.queue.pop_front();
-    ++slot.dropped;
-  }
-  slot.queue.push_back(std::move(frame));
+  if (slot.queue.push(frame)) ++slot.dropped;
   slot.changed.notify_all();
 }
 
@@ -222,11 +220,7 @@ class KinectCamera final : public LiveCamera {
     std::unique_lock lock(slot_->mutex);
     slot_->changed.wait_for(lock, std::chrono::duration<double>(std::max(0.0, timeout_s)),
                             [&] { return !slot_->queue.empty() || slot_->ended; });
-    if (!slot_->queue.empty()) {
-      frame = std::move(slot_->queue.front());
-      slot_->queue.pop_front();
-      return ReadStatus::kFrame;
-    }
+    if (slot_->queue.pop(frame)) return ReadStatus::kFrame;
     return slot_->ended ? ReadStatus::kEnded : ReadStatus::kTimeout;
   }
 
@@ -398,11 +392,10 @@ std::vector<std::unique_ptr<LiveCamera>> open_kinect_cameras(const std::string& 
   }
   context->fps = depth_mode.framerate > 0 ? depth_mode.framerate : 30;
   for (size_t i = 0; i < chosen.size(); ++i) {
-      auto slot = std::make_unique<Slot>();
+      auto slot = std::make_unique<Slot>(options.max_queued_frames);
       slot->index = chosen[i].index;
       slot->serial = chosen[i].serial;
       slot->raw = format == KinectDepthFormat::kRaw;
-      slot->max_queued_frames = options.max_queued_frames;
       slot->max_color_age_s = options.max_color_age_s;
       slot->width = depth_mode.width;
       slot->height = depth_mode.height;

@@ -28,6 +28,10 @@ struct LiveFrame {
   DepthImage depth;                  // millimetres along the optical axis, 0 = no measurement
   bool has_color = false;
   ColorImage color;                  // RGB, the colour camera's image nearest in time to the depth (by the device's clock where it stamps both)
+
+  //! Whether the frame holds image memory that a later frame can be written into (a frame moved
+  //! from holds none).
+  bool holds_images() const { return depth.data.capacity() > 0 || color.data.capacity() > 0; }
 };
 
 enum class ReadStatus {
@@ -48,7 +52,10 @@ class LiveCamera {
   virtual double fps() const = 0;
 
   //! Waits up to timeout_s (seconds, ≥ 0) for the next frame. After kEnded every call returns
-  //! kEnded. Frames already queued when the stream ends are delivered first.
+  //! kEnded. Frames already queued when the stream ends are delivered first. The frame is written
+  //! into `frame`'s images, or swapped with it, the camera keeping `frame`'s images to fill
+  //! later: a reader that hands back the images of frames it is done with lets a steady stream
+  //! allocate nothing (LiveFrameQueue).
   virtual ReadStatus read(LiveFrame& frame, double timeout_s) = 0;
   //! Ends the stream: no new frames are taken; frames already queued are still delivered.
   virtual void stop() = 0;

@@ -5,7 +5,6 @@
 #include <cmath>
 
 #include "zipfusion/core/error.h"
-#include "zipfusion/live/frame_grouping.h"
 
 namespace zipfusion {
 namespace {
@@ -35,6 +34,10 @@ LiveRig::LiveRig(std::vector<std::unique_ptr<LiveCamera>> cameras, const LiveRig
   const size_t n = cameras_.size();
   pending_.resize(n);
   pending_times_.resize(n);
+  incoming_.resize(n);
+  spares_.resize(n);
+  for (std::vector<LiveFrame>& spares : spares_) spares.reserve(kSpareFrames);
+  views_.resize(n);
   ended_.assign(n, 0);
   given_up_.assign(n, 0);
   waited_s_.assign(n, 0);
@@ -53,12 +56,26 @@ std::vector<LiveCameraStats> LiveRig::stats() const {
   return out;
 }
 
-std::optional<LiveFrameSet> LiveRig::next() {
+void LiveRig::keep_spare(int c, LiveFrame& frame) {
+  if (frame.holds_images() && spares_[c].size() < kSpareFrames) spares_[c].push_back(std::move(frame));
+  frame = LiveFrame{};
+}
+
+bool LiveRig::next(LiveFrameSet& set) {
   const int n = camera_count();
   const double period_s = 1.0 / fps_;
-  std::vector<StreamView> views(n);
+  set.cameras.resize(n);
+  for (int c = 0; c < n; ++c) {
+    if (!set.cameras[c]) continue;
+    keep_spare(c, *set.cameras[c]);
+    set.cameras[c].reset();
+  }
   auto receive = [&](int c, double timeout_s) {
-    LiveFrame frame;
+    LiveFrame& frame = incoming_[c];
+    if (!frame.holds_images() && !spares_[c].empty()) {
+      frame = std::move(spares_[c].back());
+      spares_[c].pop_back();
+    }
     const Clock::time_point start = Clock::now();
     const ReadStatus status = cameras_[c]->read(frame, timeout_s);
     if (status == ReadStatus::kFrame) {
@@ -87,33 +104,35 @@ std::optional<LiveFrameSet> LiveRig::next() {
       cancelled_ = true;
       stop();
     }
-    for (int c = 0; c < n; ++c) views[c] = {.pending_times = pending_times_[c], .open = !ended_[c] && !given_up_[c]};
-    const GroupStep step = next_group(views, period_s, not_before_s_);
+    for (int c = 0; c < n; ++c) views_[c] = {.pending_times = pending_times_[c], .open = !ended_[c] && !given_up_[c]};
+    next_group(views_, period_s, not_before_s_, step_);
     for (int c = 0; c < n; ++c) {
-      const int k = step.discard[c];
+      const int k = step_.discard[c];
       if (k == 0) continue;
+      for (int i = 0; i < k; ++i) keep_spare(c, pending_[c][i]);
       pending_[c].erase(pending_[c].begin(), pending_[c].begin() + k);
       pending_times_[c].erase(pending_times_[c].begin(), pending_times_[c].begin() + k);
       stats_[c].discarded_late += k;
     }
-    if (step.status == GroupStep::kDone) return std::nullopt;
-    if (step.status == GroupStep::kWait) {
-      const int c = step.wait_for;
+    if (step_.status == GroupStep::kDone) return false;
+    if (step_.status == GroupStep::kWait) {
+      const int c = step_.wait_for;
       receive(c, std::clamp(options_.max_wait_s - waited_s_[c], 0.0, options_.read_slice_s));
       continue;
     }
-    LiveFrameSet set{.index = next_index_++, .time_s = step.time_s, .skew_s = step.skew_s, .cameras = {}};
-    set.cameras.resize(n);
+    set.index = next_index_++;
+    set.time_s = step_.time_s;
+    set.skew_s = step_.skew_s;
     for (int c = 0; c < n; ++c) {
       waited_s_[c] = 0;
-      if (!step.member[c]) continue;
-      set.cameras[c] = std::move(pending_[c].front());
+      if (!step_.member[c]) continue;
+      set.cameras[c].emplace(std::move(pending_[c].front()));
       pending_[c].erase(pending_[c].begin());
       pending_times_[c].erase(pending_times_[c].begin());
       ++stats_[c].grouped;
     }
-    not_before_s_ = step.time_s + period_s / 2;
-    return set;
+    not_before_s_ = step_.time_s + period_s / 2;
+    return true;
   }
 }
 
@@ -142,6 +161,7 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
     bool started = false;
     double first_time_s = 0;
     int delivered = 0;
+    LiveFrameSet live;  // the rig's last set; its frames hold the images the pipeline handed back
   };
   auto state = std::make_shared<State>();
   return [&rig, options = std::move(options), state](FrameSet& set, double& decode_ms) {
@@ -150,24 +170,25 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
       rig.stop();
       return false;
     }
-    std::optional<LiveFrameSet> live = rig.next();
-    if (!live) return false;
+    LiveFrameSet& live = state->live;
+    if (!rig.next(live)) return false;
     if (!state->started) {
       state->started = true;
-      state->first_time_s = live->time_s;
+      state->first_time_s = live.time_s;
     }
-    if (options.max_seconds > 0 && live->time_s - state->first_time_s >= options.max_seconds) {
+    if (options.max_seconds > 0 && live.time_s - state->first_time_s >= options.max_seconds) {
       rig.stop();
       return false;
     }
-    if (options.observe) options.observe(*live);
+    if (options.observe) options.observe(live);
     set.index = state->delivered++;
     set.capture_time_ms = 0;
-    set.cameras.resize(live->cameras.size());
-    for (size_t c = 0; c < live->cameras.size(); ++c) {
-      // What an earlier frame set left goes; an undistorted image is written into the buffer there.
+    set.cameras.resize(live.cameras.size());
+    for (size_t c = 0; c < live.cameras.size(); ++c) {
+      // The set's images from an earlier frame set go to the live frame, and with it back to the
+      // camera; an undistorted image is written into the set's own buffer.
       CameraFrame& camera = set.cameras[c];
-      std::optional<LiveFrame>& frame = live->cameras[c];
+      std::optional<LiveFrame>& frame = live.cameras[c];
       camera.unreadable.clear();
       camera.has_depth = frame.has_value();
       camera.has_color = frame && frame->has_color;
@@ -177,10 +198,10 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
       } else if (undistorted) {
         undistort_depth_into(frame->depth, options.depth_undistortion[c], static_cast<int>(c), camera.depth);
       } else {
-        camera.depth = std::move(frame->depth);
+        std::swap(camera.depth, frame->depth);
       }
       if (camera.has_color) {
-        camera.color = std::move(frame->color);
+        std::swap(camera.color, frame->color);
       } else {
         camera.color.resize_for_overwrite(0, 0);
       }

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "zipfusion/io/capture.h"
+#include "zipfusion/live/frame_grouping.h"
 #include "zipfusion/live/live_camera.h"
 
 namespace zipfusion {
@@ -61,9 +62,11 @@ class LiveRig {
   const LiveCamera& camera(int c) const { return *cameras_.at(c); }
   double fps() const { return fps_; }
 
-  //! The next frame set, waiting for the cameras as needed; nothing once every stream has ended
-  //! (or was stopped) and every received frame was handed out.
-  std::optional<LiveFrameSet> next();
+  //! The next frame set into `set`, waiting for the cameras as needed; false once every stream
+  //! has ended (or was stopped) and every received frame was handed out. The frames `set` held
+  //! (the set handed out before) go back to their cameras to be filled again, so a caller that
+  //! keeps passing the same set gets a steady stream without allocating.
+  bool next(LiveFrameSet& set);
   //! Stops every camera (thread-safe); next() then hands out what was already received.
   void stop();
 
@@ -73,8 +76,16 @@ class LiveRig {
   std::vector<std::unique_ptr<LiveCamera>> cameras_;
   LiveRigOptions options_;
   double fps_ = 30;
+  // Hands a frame's images back for its camera to fill again (at most kSpareFrames a camera).
+  void keep_spare(int c, LiveFrame& frame);
+  static constexpr size_t kSpareFrames = 8;
+
   std::vector<std::vector<LiveFrame>> pending_;
   std::vector<std::vector<double>> pending_times_;
+  std::vector<LiveFrame> incoming_;             // per camera: what the next read() fills
+  std::vector<std::vector<LiveFrame>> spares_;  // per camera: images to give back through read()
+  std::vector<StreamView> views_;
+  GroupStep step_;
   std::vector<char> ended_, given_up_;
   std::vector<double> waited_s_;
   std::vector<LiveCameraStats> stats_;
@@ -111,9 +122,10 @@ using LiveFrameSource = std::function<bool(FrameSet& set, double& decode_ms)>;
 //! The pipeline's FrameSource over a live rig (use PipelineOptions::source_policy =
 //! QueuePolicy::kDropOldest: the cameras do not wait). Frame sets carry depth in millimetres
 //! (depth_unit_m 0.001) and colour; `decode_ms` is the time spent waiting for and grouping the
-//! set. The devices' images are moved into `set` (a device allocates each frame's images), but a
-//! depth image that is undistorted is written into the set's own buffer. The rig must outlive
-//! the source; the source stops the rig when a limit is reached.
+//! set. The devices' images are swapped with `set`'s, whose images go back to the cameras to be
+//! filled again (a depth image that is undistorted is written into the set's own buffer), so a
+//! pipeline that recycles its frame sets gets a steady stream without allocating. The rig must
+//! outlive the source; the source stops the rig when a limit is reached.
 LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options = {});
 
 }  // namespace zipfusion

@@ -83,16 +83,16 @@ RecordResult record_capture(LiveRig& live, const Rig& rig_in, const fs::path& ou
   double first_time_s = 0, skew_sum_s = 0;
   int skew_sets = 0;
   std::vector<std::vector<PendingFile>> files(n);
+  LiveFrameSet set;
   while (true) {
     // A capture holds at most kMostFrames (six-digit frame files): about 9 hours at 30 fps.
     if ((options.max_frames > 0 && result.frame_sets >= options.max_frames) || result.frame_sets >= kMostFrames) {
       result.limit_reached = true;
       break;
     }
-    std::optional<LiveFrameSet> set = live.next();
-    if (!set) break;
-    if (result.frame_sets == 0) first_time_s = set->time_s;
-    if (options.max_seconds > 0 && set->time_s - first_time_s >= options.max_seconds) {
+    if (!live.next(set)) break;
+    if (result.frame_sets == 0) first_time_s = set.time_s;
+    if (options.max_seconds > 0 && set.time_s - first_time_s >= options.max_seconds) {
       result.limit_reached = true;
       break;
     }
@@ -100,7 +100,7 @@ RecordResult record_capture(LiveRig& live, const Rig& rig_in, const fs::path& ou
     // Encode and write every camera's files under temporary names (in parallel), then rename.
     parallel_for(0, n, [&](int c) {
       files[c].clear();
-      const std::optional<LiveFrame>& f = set->cameras[c];
+      const std::optional<LiveFrame>& f = set.cameras[c];
       if (!f) return;
       const CameraModel& camera = rig.cameras[c];
       files[c].push_back(pending_file(out_dir / camera.name / "depth", frame_file_name(frame, ".png"), encode_depth_png(f->depth)));
@@ -113,7 +113,7 @@ RecordResult record_capture(LiveRig& live, const Rig& rig_in, const fs::path& ou
     int members = 0;
     for (int c = 0; c < n; ++c) {
       for (const PendingFile& file : files[c]) rename_into_place(file);
-      const std::optional<LiveFrame>& f = set->cameras[c];
+      const std::optional<LiveFrame>& f = set.cameras[c];
       if (!f) continue;
       ++members;
       ++result.frames_written[c];
@@ -127,13 +127,13 @@ RecordResult record_capture(LiveRig& live, const Rig& rig_in, const fs::path& ou
     rig.frame_count = frame + 1;
     write_rig(out_dir / "rig.json", rig);
     result.frame_sets = rig.frame_count;
-    result.duration_s = set->time_s - first_time_s;
+    result.duration_s = set.time_s - first_time_s;
     if (members >= 2) {
-      result.max_skew_s = std::max(result.max_skew_s, set->skew_s);
-      skew_sum_s += set->skew_s;
+      result.max_skew_s = std::max(result.max_skew_s, set.skew_s);
+      skew_sum_s += set.skew_s;
       ++skew_sets;
     }
-    if (options.progress) options.progress(*set);
+    if (options.progress) options.progress(set);
   }
   if (result.limit_reached) live.stop();
   result.mean_skew_s = skew_sets > 0 ? skew_sum_s / skew_sets : 0;

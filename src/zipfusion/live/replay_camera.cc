@@ -37,6 +37,7 @@ void ReplayOptions::validate() const {
 ReplayCamera::ReplayCamera(const std::filesystem::path& dir, const std::string& name, const ReplayOptions& options)
     : dir_(dir), options_(options), model_(kinect_v1_default_model(name)), entries_(read_fakenect_index(dir)) {
   options_.validate();
+  for (const FakenectIndexEntry& entry : entries_) paths_.push_back((dir_ / entry.file).string());
   pass_ticks_ = static_cast<std::uint32_t>(std::llround(std::fmod(options_.timeline.period_s * kKinectClockHz, 4294967296.0)));
 }
 
@@ -99,25 +100,27 @@ ReadStatus ReplayCamera::read_next(LiveFrame& frame) {
       depth_this_pass_ = 0;
       has_color_ = false;  // the last pass's last colour is no colour of this pass's first depth
     }
+    const std::string& file = paths_[next_];
     const FakenectIndexEntry& entry = entries_[next_++];
     if (entry.type != 'd' && entry.type != 'r') continue;
-    const std::filesystem::path file = dir_ / entry.file;
     // This pass's times: the recording's, shifted by the passes before (the device clock wraps).
     const double time_s = entry.time_s + pass_ * options_.timeline.period_s;
     const std::uint32_t timestamp = entry.timestamp + static_cast<std::uint32_t>(pass_) * pass_ticks_;
     try {
-      const std::vector<std::uint8_t> bytes = read_file_bytes(file);
+      // Into kept buffers, and the frame's own images: a replay read by a rig that hands its
+      // frames back allocates nothing per frame.
+      read_file_bytes(file, bytes_);
       if (entry.type == 'r') {
-        color_ = decode_fakenect_rgb(bytes, file.string());
+        decode_fakenect_rgb(bytes_, file, color_);
         color_timestamp_ = timestamp;
         has_color_ = true;
         continue;
       }
-      const RawDepthImage raw = decode_fakenect_depth(bytes, file.string());
+      decode_fakenect_depth(bytes_, file, raw_);
       frame.time_s = time_s;
       frame.device_timestamp = timestamp;
-      frame.depth.resize(raw.width, raw.height);
-      kinect_raw_frame_to_mm(static_cast<int>(raw.size()), raw.data.data(), frame.depth.data.data());
+      frame.depth.resize_for_overwrite(raw_.width, raw_.height);
+      kinect_raw_frame_to_mm(static_cast<int>(raw_.size()), raw_.data.data(), frame.depth.data.data());
       frame.has_color = has_color_ && kinect_color_pairs_with_depth(color_timestamp_, timestamp, options_.max_color_age_s);
       if (frame.has_color) frame.color = color_;
       ++depth_this_pass_;

@@ -90,6 +90,7 @@ class ReplayCamera final : public LiveCamera {
   ReplayOptions options_;
   CameraModel model_;
   std::vector<FakenectIndexEntry> entries_;
+  std::vector<std::string> paths_;  // per entry: dir_ / file, made once (a path a frame would allocate)
   size_t next_ = 0;
   int pass_ = 0;                   // passes of the loop completed
   int depth_this_pass_ = 0;        // depth frames delivered in this pass (a loop without any would spin)
@@ -97,6 +98,8 @@ class ReplayCamera final : public LiveCamera {
   bool ended_ = false;
   bool has_color_ = false;
   ColorImage color_;
+  std::vector<std::uint8_t> bytes_;  // the file being decoded (its buffer kept)
+  RawDepthImage raw_;                // the depth being converted (its buffer kept)
   bool has_pending_ = false;       // paced: the next frame, read and waiting for its time
   LiveFrame pending_;
   std::uint32_t color_timestamp_ = 0;

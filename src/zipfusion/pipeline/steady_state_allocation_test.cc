@@ -2,7 +2,8 @@
 // counted by replacing the global operator new, and a FrameReconstructor runs the same samba-4cam
 // frame sets again after passes that grow its buffers: that pass must not allocate; nor must
 // decoding them again into the same frame set, nor the whole pipeline, source to sink, once its
-// frame sets, queues and meshes go round (docs/design.md, *The frame pipeline and threads*).
+// frame sets, queues and meshes go round (docs/design.md, *The frame pipeline and threads*), from
+// a capture or from live cameras.
 
 #include <gtest/gtest.h>
 
@@ -18,8 +19,11 @@
 #include "zipfusion/core/allocation_count_test_util.h"
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
+#include "zipfusion/live/live_rig.h"
+#include "zipfusion/live/replay_camera.h"
 #include "zipfusion/pipeline/pipeline.h"
 #include "zipfusion/pipeline/reconstruct.h"
+#include "zipfusion/synth/fakenect_scene.h"
 
 namespace zipfusion {
 namespace {
@@ -211,6 +215,59 @@ TEST_F(SteadyState, PipelineAllocatesNothing) {
     EXPECT_EQ(at_sink[k] - at_sink[k - 1], 0) << "between the sink calls of frame sets " << k - 1 << " and " << k;
   }
   std::printf("pipeline: %lld allocations from frame set %d's sink call to frame set %d's\n", at_sink[kSets - 1] - at_sink[first_measured],
+              first_measured, kSets - 1);
+}
+
+// Live cameras: four fakenect dumps of the synthetic ring, replayed in a loop, through LiveRig
+// and live_frame_source into the pipeline. The images go round from the pipeline's recycled
+// frame sets back through the rig to the cameras (LiveFrameQueue for a device, the replay's own
+// buffers here), so once every buffer has grown nothing is allocated between sink calls. Before
+// (2026-12-07), each camera's frame took new images and the rig a new set, a grouping decision
+// and a view of the streams.
+TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
+  const fs::path dir = fs::temp_directory_path() / "zf_steady_state_live";
+  fs::remove_all(dir);
+  constexpr int kCameras = 4, kDumpFrames = 3, kRounds = 6, kSets = kDumpFrames * kRounds;
+  const SynthOptions synth{.frames = kDumpFrames, .cameras = kCameras};
+  std::vector<fs::path> dumps;
+  Rig calibration;
+  for (int c = 0; c < kCameras; ++c) {
+    dumps.push_back(dir / ("cam" + std::to_string(c)));
+    const FakenectSceneResult scene = write_fakenect_scene(dumps.back(), synth, {.camera = c});
+    if (c == 0) calibration = scene.truth_rig;
+    else calibration.cameras.push_back(scene.truth_rig.cameras[0]);
+    calibration.cameras.back().name = "cam" + std::to_string(c);
+  }
+  const ReplayTimeline timeline = replay_timeline(dumps, synth.fps);
+  std::vector<std::unique_ptr<LiveCamera>> cameras;
+  for (int c = 0; c < kCameras; ++c) {
+    cameras.push_back(std::make_unique<ReplayCamera>(dumps[c], "cam" + std::to_string(c), ReplayOptions{.loop = true, .timeline = timeline}));
+  }
+  LiveRig live(std::move(cameras));
+  const Rig rig = make_live_rig(live, &calibration, "the synthetic ring's truth");
+  FrameReconstructor reconstructor(rig, {.mode = ReconstructMode::kZipper, .bilateral = false});
+  std::vector<long long> at_sink(kSets, -1);
+  std::vector<int> triangles(kSets, 0), cameras_used(kSets, 0);
+  int sunk = 0;
+  const PipelineStats stats = run_pipeline(live_frame_source(live, {.max_frames = kSets}), reconstructor, [&](PipelineFrame& frame) {
+    at_sink[sunk] = g_allocations.load();
+    triangles[sunk] = static_cast<int>(frame.result.mesh.triangle_count());
+    cameras_used[sunk] = frame.result.cameras_used;
+    ++sunk;
+  });
+  fs::remove_all(dir);
+  ASSERT_EQ(stats.frames, kSets);
+  ASSERT_EQ(sunk, kSets);
+  for (int k = 0; k < kSets; ++k) {
+    EXPECT_EQ(cameras_used[k], kCameras) << "frame set " << k;
+    EXPECT_EQ(triangles[k], triangles[k % kDumpFrames]) << "frame set " << k << ": the same frames made another mesh";
+  }
+  EXPECT_GT(triangles[0], 50000);
+  const int first_measured = 3 * kDumpFrames - 1;  // the sink call ending the third pass
+  for (int k = first_measured + 1; k < kSets; ++k) {
+    EXPECT_EQ(at_sink[k] - at_sink[k - 1], 0) << "between the sink calls of frame sets " << k - 1 << " and " << k;
+  }
+  std::printf("live: %lld allocations from frame set %d's sink call to frame set %d's\n", at_sink[kSets - 1] - at_sink[first_measured],
               first_measured, kSets - 1);
 }
 
