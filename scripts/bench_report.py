@@ -107,11 +107,13 @@ def scaling_section(folder):
            "frame sets, then over the rounds.", "",
            "What the zipper works on is the cameras' triangles (all of them are the separate meshes') and the overlapping "
            "pairs it finds: more cameras in one ring overlap more (each surface seen twice or more), and a finer depth "
-           "image gives more triangles for the same surface. The ns column divides the one-thread total (every stage, "
-           "foreground to assembly) by the cameras' triangles: where it stays flat, the time grows linearly with the work.", "",
+           "image gives more triangles for the same surface. The ns columns divide the zipper's total (every stage, "
+           "foreground to assembly) by the cameras' triangles: where they stay flat, the time grows linearly with the work. "
+           "The speed-up is the one-thread total over the two-thread one.", "",
            "| rig | zipper | zipper+filter | separate | zipper, 1 thread | CPU time stolen, % (zipper / 1 thread, most of any round) "
-           "| overlapping pairs | cameras' triangles | zipper, 1 thread, ns per camera triangle |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| overlapping pairs | cameras' triangles | zipper, 1 thread, ns per camera triangle | zipper, all threads, ns per camera triangle "
+           "| speed-up of all threads |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rig, _, _ in rigs:
         if not results[rig]:
             continue
@@ -123,11 +125,12 @@ def scaling_section(folder):
             configs = [config(r, name) for r in results[rig][:rounds]]
             return stolen(max(configs, key=lambda c: -1 if c.get("cpu_stolen_share") is None else c["cpu_stolen_share"]))
         pairs = config(first, "zipper").get("pairs")
-        per_triangle = f"{1e6 * one_thread / camera_triangles:.0f}" if camera_triangles else "–"
-        out.append(f"| {label} | {median_total(rig, 'zipper'):.1f} | {median_total(rig, 'zipper+filter'):.1f} | "
+        all_threads = median_total(rig, "zipper")
+        per_triangle = lambda ms: f"{1e6 * ms / camera_triangles:.0f}" if camera_triangles else "–"
+        out.append(f"| {label} | {all_threads:.1f} | {median_total(rig, 'zipper+filter'):.1f} | "
                    f"{median_total(rig, 'separate'):.1f} | {one_thread:.1f} | {most_stolen('zipper')} / "
                    f"{most_stolen('zipper 1 thread')} | {'?' if pairs is None else f'{pairs:.0f}'} | {camera_triangles:.0f} | "
-                   f"{per_triangle} |")
+                   f"{per_triangle(one_thread)} | {per_triangle(all_threads)} | {one_thread / all_threads:.2f} |")
     # Growth: each rig's time over the 4-camera 640×480 rig's in the same round (median over the
     # rounds), beside the growth of the cameras or pixels and of the cameras' triangles.
     out += ["", "Growth against the 4-camera 640×480 rig, each ratio taken within a round: the median over the rounds, and in "
@@ -150,16 +153,23 @@ def scaling_section(folder):
              ("6 → 8 cameras, per camera", "cameras_6", "cameras_8", 2),
              ("320x240 → 640x480, per million pixels of each camera", "size_320x240", "cameras_4", (640 * 480 - 320 * 240) / 1e6),
              ("640x480 → 1280x960, per million pixels of each camera", "cameras_4", "size_1280x960", (1280 * 960 - 640 * 480) / 1e6)]
-    out += ["", "The same growth as the time each camera or pixel adds, within each round (ms: the median over the rounds, and in "
-            "brackets the lowest and highest round): equal figures down a column mean linear growth.", "",
+    # The same steps per 100 000 cameras' triangles added: a finer image has more triangles per
+    # pixel (fewer are cut at depth steps), so per pixel the work itself grows.
+    triangles = lambda rig: config(results[rig][0], "separate")["triangles"] if results[rig] else 0
+    steps += [(f"{a} → {b}, per 100 000 cameras' triangles", before, after, (triangles(after) - triangles(before)) / 1e5)
+              for a, b, before, after in (("320x240", "640x480", "size_320x240", "cameras_4"), ("640x480", "1280x960", "cameras_4", "size_1280x960"))]
+    out += ["", "The same growth as the time each camera, pixel or triangle adds, within each round (ms: the median over the rounds, "
+            "and in brackets the lowest and highest round): equal figures down a column mean linear growth.", "",
             "| step | zipper | zipper, 1 thread | zipper+filter |", "|---|---|---|---|"]
     for label, before, after, added in steps:
-        if not (results[before] and results[after]):
+        if not (results[before] and results[after]) or added <= 0:
             continue
         def step(name):
             return median_and_range([(total(b, name) - total(a, name)) / added for a, b in zip(results[before][:rounds], results[after][:rounds])], 1)
         out.append(f"| {label} | {step('zipper')} | {step('zipper 1 thread')} | {step('zipper+filter')} |")
-    out.append("")
+    out += ["", "Why a triangle costs more at 1280×960, above all on two threads: cachegrind (one thread, 32 MB last level) counted "
+            "4.12 times the instructions for 4.04 times the triangles, but 8.1 times the reads that miss the last level: four "
+            "cameras' buffers at that size no longer fit the cache both cores share (docs/profile.md, twelfth session of 2026-12-07).", ""]
     return out
 
 
