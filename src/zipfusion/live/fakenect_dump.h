@@ -59,7 +59,7 @@ std::vector<std::uint8_t> encode_fakenect_rgb(const ColorImage& color);
 RawDepthImage decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source);
 ColorImage decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source);
 //! The same into an image whose buffer is reused (a replay, frame after frame). On a throw the
-//! image's pixels are unspecified.
+//! image's size and pixels are unspecified.
 void decode_fakenect_depth(std::span<const std::uint8_t> bytes, const std::string& source, RawDepthImage& raw);
 void decode_fakenect_rgb(std::span<const std::uint8_t> bytes, const std::string& source, ColorImage& color);
 

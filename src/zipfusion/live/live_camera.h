@@ -52,10 +52,12 @@ class LiveCamera {
   virtual double fps() const = 0;
 
   //! Waits up to timeout_s (seconds, ≥ 0) for the next frame. After kEnded every call returns
-  //! kEnded. Frames already queued when the stream ends are delivered first. The frame is written
-  //! into `frame`'s images, or swapped with it, the camera keeping `frame`'s images to fill
-  //! later: a reader that hands back the images of frames it is done with lets a steady stream
-  //! allocate nothing (LiveFrameQueue).
+  //! kEnded. Frames already queued when the stream ends are delivered first. `frame` comes in
+  //! holding an earlier frame (its images to be reused): on kFrame every field is written, or the
+  //! whole frame swapped with a queued one (LiveFrameQueue) — time_s, device_timestamp, depth,
+  //! has_color (false where there is no colour: the old colour is still there) and, with
+  //! has_color, color. The camera may keep `frame`'s old images to fill later, so a reader that
+  //! hands back the frames it is done with gets a steady stream without allocating.
   virtual ReadStatus read(LiveFrame& frame, double timeout_s) = 0;
   //! Ends the stream: no new frames are taken; frames already queued are still delivered.
   virtual void stop() = 0;

@@ -17,7 +17,9 @@ namespace zipfusion {
 
 class LiveFrameQueue {
  public:
-  //! Holds at most `capacity` frames (≥ 1; throws InvalidInput), and as many spare frames' images.
+  //! Holds at most `capacity` frames (≥ 1; throws InvalidInput), and the images of at most
+  //! kMostSpares frames read or dropped, for the producer to fill.
+  static constexpr int kMostSpares = 4;
   explicit LiveFrameQueue(int capacity);
 
   //! Queues the filled `frame`, and leaves in `frame` the images of a frame read earlier, to be

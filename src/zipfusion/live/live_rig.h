@@ -27,7 +27,7 @@ struct LiveRigOptions {
   double max_wait_s = 0.25;   // real time waited for a camera's next frame before a set is decided without it, seconds
   double read_slice_s = 0.05; // longest single wait, so `cancel` is noticed within it, seconds
   //! When it turns true, every camera stops; frames already received still come out as sets, then
-  //! next() returns nothing. May be null. Must outlive the rig.
+  //! next() returns false. May be null. Must outlive the rig.
   const std::atomic<bool>* cancel = nullptr;
 
   void validate() const;  // throws InvalidInput naming the field
