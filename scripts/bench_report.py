@@ -167,9 +167,11 @@ def scaling_section(folder):
         def step(name):
             return median_and_range([(total(b, name) - total(a, name)) / added for a, b in zip(results[before][:rounds], results[after][:rounds])], 1)
         out.append(f"| {label} | {step('zipper')} | {step('zipper 1 thread')} | {step('zipper+filter')} |")
-    out += ["", "Why a triangle costs more at 1280×960, above all on two threads: cachegrind (one thread, 32 MB last level) counted "
-            "4.12 times the instructions for 4.04 times the triangles, but 8.1 times the reads that miss the last level: four "
-            "cameras' buffers at that size no longer fit the cache both cores share (docs/profile.md, twelfth session of 2026-12-07).", ""]
+    out += ["", "Where a triangle costs more at 1280×960 than at 640×480, one count differs: cachegrind (one thread, 32 MB last "
+            "level, the zipper alone) counted 4.12 times the instructions for 4.04 times the triangles, but 8.1 times the reads "
+            "that miss the last level, as four cameras' buffers at that size no longer fit the cache both cores share. How much "
+            "that costs depends on the machine's memory at the time: the per-triangle steps above went from +37 % to −5 % "
+            "between two runs of the same code (docs/profile.md, twelfth session of 2026-12-07).", ""]
     return out
 
 
