@@ -1,6 +1,7 @@
 #pragma once
 // Counts every allocation of a test binary: replaces the global operator new (and delete) with
-// ones that count calls, bytes and the largest block in g_allocations, g_bytes and g_largest.
+// ones that count calls, bytes and the largest block in g_allocations, g_bytes and g_largest, and
+// the calling thread's calls in t_allocations.
 // The replacements are definitions: include this in exactly one file of a test binary.
 
 #include <atomic>
@@ -13,9 +14,11 @@ namespace {
 std::atomic<long long> g_allocations{0};
 std::atomic<long long> g_bytes{0};
 std::atomic<size_t> g_largest{0};
+thread_local long long t_allocations = 0;
 
 void* counted_allocation(std::size_t size, std::size_t alignment) {
   g_allocations.fetch_add(1, std::memory_order_relaxed);
+  ++t_allocations;
   g_bytes.fetch_add(static_cast<long long>(size), std::memory_order_relaxed);
   size_t largest = g_largest.load(std::memory_order_relaxed);
   while (size > largest && !g_largest.compare_exchange_weak(largest, size, std::memory_order_relaxed)) {

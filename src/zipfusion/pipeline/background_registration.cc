@@ -1,5 +1,7 @@
 #include "zipfusion/pipeline/background_registration.h"
 
+#include <algorithm>
+
 #include "zipfusion/core/error.h"
 
 namespace zipfusion {
@@ -12,6 +14,7 @@ void BackgroundRegistrationOptions::validate() const {
 
 BackgroundRegistration::BackgroundRegistration(const Rig& rig, const BackgroundRegistrationOptions& options) : rig_(rig), options_(options) {
   options_.validate();
+  window_.reserve(options_.window_frames);
   auto initial = std::make_shared<PublishedPoses>();
   initial->world_from_depth = world_from_depth_poses(rig);
   published_ = std::move(initial);
@@ -31,8 +34,14 @@ void BackgroundRegistration::offer(const FrameSet& frames) {
   if (!due) return;
   std::unique_lock lock(mutex_, std::try_to_lock);
   if (!lock.owns_lock() || busy_ || pending_) return;  // the worker is still at it: skip, never wait
-  window_.push_back(frames);
-  if (static_cast<int>(window_.size()) > options_.window_frames) window_.erase(window_.begin());
+  if (static_cast<int>(window_.size()) < options_.window_frames) {
+    window_.push_back(frames);
+  } else {
+    // The oldest goes to the back and takes the copy into its own images: once the window is
+    // full, a hand-over allocates nothing on the pipeline's thread.
+    std::rotate(window_.begin(), window_.begin() + 1, window_.end());
+    window_.back() = frames;
+  }
   pending_ = true;
   lock.unlock();
   wake_.notify_one();
@@ -50,7 +59,7 @@ void BackgroundRegistration::wait_idle() {
 
 void BackgroundRegistration::run() {
   for (;;) {
-    std::vector<FrameSet> window;
+    std::vector<FrameSet>& window = refining_;  // copied into the images of the window before
     std::shared_ptr<const PublishedPoses> start;
     {
       std::unique_lock lock(mutex_);

@@ -65,7 +65,8 @@ class BackgroundRegistration {
   std::condition_variable wake_;
   std::condition_variable idle_;
   std::shared_ptr<const PublishedPoses> published_;
-  std::vector<FrameSet> window_;  // guarded by mutex_; the worker copies it out
+  std::vector<FrameSet> window_;    // guarded by mutex_; the worker copies it out
+  std::vector<FrameSet> refining_;  // the worker's copy (worker thread only)
   bool pending_ = false;          // a hand-over waits for the worker
   bool busy_ = false;             // the worker is refining
   bool stop_ = false;
