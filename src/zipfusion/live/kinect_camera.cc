@@ -173,7 +173,7 @@ struct Context {
   static void on_video(freenect_device* device, void* data, std::uint32_t timestamp) {
     Slot& slot = *static_cast<Slot*>(freenect_get_user(device));
     if (slot.stop_requested) return;
-    slot.color.resize(slot.width, slot.height);
+    slot.color.resize_for_overwrite(slot.width, slot.height);  // every pixel copied below
     std::memcpy(slot.color.data.data(), data, slot.color.data.size() * sizeof(Rgb8));
     slot.color_timestamp = timestamp;
     slot.has_color = true;
