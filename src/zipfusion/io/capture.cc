@@ -353,7 +353,8 @@ void Capture::load_camera_frame(int frame, int camera, CameraFrame& out, CameraF
         check_size(file, out.color.width, out.color.height, *model.color_intrinsics, "color_intrinsics");
       });
     } else if (options_.strict) {
-      throw InvalidInput((dir_ / model.name / "color" / frame_file_name(frame, ".jpg")).string() + ": missing frame");
+      frame_file_path(frame_folders_[camera].color, frame, ".jpg", file);  // no file of either kind: named as the usual one
+      throw InvalidInput(file + ": missing frame");
     }
   }
   if (!out.has_color) leave_out(out.color, model.has_color() ? *model.color_intrinsics : Intrinsics{});
