@@ -9,10 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <unistd.h>
 #include <vector>
 
@@ -26,6 +28,12 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr int kDumpFrames = 40, kWarmUpSets = 10;
+// The reader stalls twice: in the warm-up for about five frames, which queue meanwhile, each in
+// images of its own, of which the queue keeps four frames' worth for the next backlog; after it
+// for about two. A reader that had not fallen behind in the warm-up allocated at its first stall
+// after it (2 allocations); one whose later backlog outgrows what the queue keeps would too.
+constexpr int kStalledSets[2] = {4, 20};
+constexpr int kStallMs[2] = {160, 60};
 
 // Under fakenect: the device's frames through the rig and the live source.
 void read_device_and_count() {
@@ -37,6 +45,9 @@ void read_device_and_count() {
   int delivered = 0, with_depth = 0, with_color = 0;
   for (double decode_ms = 0;; ++delivered) {
     const long long before = g_allocations.load();
+    for (int k = 0; k < 2; ++k) {
+      if (delivered == kStalledSets[k]) std::this_thread::sleep_for(std::chrono::milliseconds(kStallMs[k]));
+    }
     if (!source(sets[delivered % 2], decode_ms)) break;
     if (delivered >= kWarmUpSets) allocations.push_back(g_allocations.load() - before);
     const CameraFrame& camera = sets[delivered % 2].cameras.at(0);
