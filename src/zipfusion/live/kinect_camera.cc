@@ -186,6 +186,11 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
   Slot& slot = *static_cast<Slot*>(freenect_get_user(device));
   if (slot.stop_requested) return;
   LiveFrame& frame = slot.filling;
+  if (!frame.holds_images()) {
+    // The last push() had no spare to leave here; the reader may have handed one back since.
+    std::lock_guard lock(slot.mutex);
+    slot.queue.refill(frame);
+  }
   frame.time_s = now_s();
   frame.device_timestamp = timestamp;
   frame.depth.resize_for_overwrite(slot.width, slot.height);

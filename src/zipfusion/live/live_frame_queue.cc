@@ -39,6 +39,12 @@ bool LiveFrameQueue::push(LiveFrame& frame) {
   return dropped;
 }
 
+void LiveFrameQueue::refill(LiveFrame& frame) {
+  if (frame.holds_images() || spares_.empty()) return;
+  frame = std::move(spares_.back());
+  spares_.pop_back();
+}
+
 bool LiveFrameQueue::pop(LiveFrame& frame) {
   if (size_ == 0) return false;
   std::swap(ring_[head_], frame);

@@ -29,6 +29,9 @@ class LiveFrameQueue {
   //! Moves the oldest frame into `frame`, whose previous images are kept for the producer.
   //! Returns false, leaving `frame` as it is, when the queue is empty.
   bool pop(LiveFrame& frame);
+  //! Gives `frame`, when it holds no images, those of a kept frame, if any: a producer left
+  //! without images by push() (no spare then) takes what the reader has handed back since.
+  void refill(LiveFrame& frame);
 
   int size() const { return size_; }
   bool empty() const { return size_ == 0; }

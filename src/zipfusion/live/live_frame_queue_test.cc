@@ -44,6 +44,33 @@ TEST(LiveFrameQueue, GivesTheOldestFirstAndDropsTheOldestWhenFull) {
   EXPECT_TRUE(queue.empty());
 }
 
+// A producer that push() left without images (no spare then) takes the images the reader hands
+// back later, before it fills its next frame, instead of allocating new ones.
+TEST(LiveFrameQueue, AProducerLeftWithoutImagesTakesThoseHandedBackSince) {
+  LiveFrameQueue queue(4);
+  LiveFrame producer = frame_at(0);
+  queue.push(producer);
+  ASSERT_FALSE(producer.holds_images());
+  queue.refill(producer);
+  EXPECT_FALSE(producer.holds_images());  // nothing handed back yet
+  LiveFrame reader = frame_at(-1);
+  const std::uint16_t* readers = reader.depth.data.data();
+  ASSERT_TRUE(queue.pop(reader));
+  queue.refill(producer);
+  EXPECT_EQ(producer.depth.data.data(), readers);
+  EXPECT_EQ(queue.spare_count(), 0);
+  LiveFrame next = frame_at(1);
+  queue.push(next);
+  reader = frame_at(-2);
+  ASSERT_TRUE(queue.pop(reader));
+  ASSERT_EQ(queue.spare_count(), 1);
+  LiveFrame holding = frame_at(2);
+  const std::uint16_t* own = holding.depth.data.data();
+  queue.refill(holding);  // a frame that holds images keeps its own, and the spare stays
+  EXPECT_EQ(holding.depth.data.data(), own);
+  EXPECT_EQ(queue.spare_count(), 1);
+}
+
 TEST(LiveFrameQueue, TheReadersImagesAreFilledNext) {
   LiveFrameQueue queue(4);
   LiveFrame producer = frame_at(0);

@@ -94,15 +94,17 @@ bool LiveRig::next(LiveFrameSet& set) {
     }
     return status;
   };
-  // Cameras given up on are not waited for, but what they have delivered meanwhile is taken.
-  for (int c = 0; c < n; ++c) {
-    while (given_up_[c] && !ended_[c] && receive(c, 0) == ReadStatus::kFrame) {
-    }
-  }
   while (true) {
     if (options_.cancel && options_.cancel->load() && !cancelled_) {
       cancelled_ = true;
       stop();
+    }
+    // Cameras given up on are not waited for, but what they have delivered meanwhile is taken,
+    // before each decision: a camera back from a silence then joins the set its first frame
+    // belongs to, rather than that set being decided without it.
+    for (int c = 0; c < n; ++c) {
+      while (given_up_[c] && !ended_[c] && receive(c, 0) == ReadStatus::kFrame) {
+      }
     }
     for (int c = 0; c < n; ++c) views_[c] = {.pending_times = pending_times_[c], .open = !ended_[c] && !given_up_[c]};
     next_group(views_, period_s, not_before_s_, step_);
@@ -114,7 +116,19 @@ bool LiveRig::next(LiveFrameSet& set) {
       pending_times_[c].erase(pending_times_[c].begin(), pending_times_[c].begin() + k);
       stats_[c].discarded_late += k;
     }
-    if (step_.status == GroupStep::kDone) return false;
+    if (step_.status == GroupStep::kDone) {
+      // Nothing pending, and no camera to wait for: each has ended or was given up on. One given
+      // up on has not ended (a hiccup of the only camera, or of every one): its silence is waited
+      // out, a slice of a read from each in turn, so that the stream goes on as soon as one
+      // delivers again and `cancel` is heard in between.
+      int alive = 0;
+      for (int c = 0; c < n; ++c) alive += !ended_[c];
+      if (alive == 0) return false;
+      for (int c = 0; c < n; ++c) {
+        if (!ended_[c]) receive(c, options_.read_slice_s / alive);
+      }
+      continue;
+    }
     if (step_.status == GroupStep::kWait) {
       const int c = step_.wait_for;
       receive(c, std::clamp(options_.max_wait_s - waited_s_[c], 0.0, options_.read_slice_s));
