@@ -30,8 +30,9 @@ namespace fs = std::filesystem;
 constexpr int kDumpFrames = 40, kWarmUpSets = 10;
 // The reader stalls twice: in the warm-up for about five frames, which queue meanwhile, each in
 // images of its own, of which the queue keeps four frames' worth for the next backlog; after it
-// for about two. A reader that had not fallen behind in the warm-up allocated at its first stall
-// after it (2 allocations); one whose later backlog outgrows what the queue keeps would too.
+// for about two. A reader that had not fallen behind in the warm-up can allocate at its first
+// stall after it (2 allocations after a 100 ms stall, in one run alone and in one of five beside
+// three CPU hogs); one whose later backlog outgrows what the queue keeps would too.
 constexpr int kStalledSets[2] = {4, 20};
 constexpr int kStallMs[2] = {160, 60};
 
