@@ -196,7 +196,7 @@ void Context::on_depth(freenect_device* device, void* data, std::uint32_t timest
   frame.depth.resize_for_overwrite(slot.width, slot.height);
   const int n = slot.width * slot.height;
   if (slot.raw) {
-    kinect_raw_frame_to_mm(n, static_cast<const std::uint16_t*>(data), frame.depth.data.data());
+    kinect_raw_bytes_to_mm(n, data, frame.depth.data.data());
   } else {
     std::memcpy(frame.depth.data.data(), data, static_cast<size_t>(n) * sizeof(std::uint16_t));
   }

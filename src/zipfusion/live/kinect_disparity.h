@@ -14,6 +14,7 @@
 //! Element functions: no allocation, exceptions or STL, callable from a CUDA kernel as they are.
 
 #include <cstdint>
+#include <cstring>
 
 namespace zipfusion {
 
@@ -49,6 +50,17 @@ inline double kinect_raw_step_m(double z) { return z * z * kKinectRawInverseDept
 //! Converts a whole 11-bit raw frame (n pixels) to millimetres: one element function call per pixel.
 inline void kinect_raw_frame_to_mm(int n, const std::uint16_t* raw, std::uint16_t* mm) {
   for (int i = 0; i < n; ++i) mm[i] = kinect_raw_to_mm(raw[i]);
+}
+
+//! The same from a device's buffer of host-order 16-bit values that need not be aligned for
+//! them: fakenect hands over its file's bytes after the header, at an odd address.
+inline void kinect_raw_bytes_to_mm(int n, const void* raw, std::uint16_t* mm) {
+  const auto* bytes = static_cast<const unsigned char*>(raw);
+  for (int i = 0; i < n; ++i) {
+    std::uint16_t value;
+    std::memcpy(&value, bytes + 2 * static_cast<long>(i), sizeof value);  // an unaligned load, not a call
+    mm[i] = kinect_raw_to_mm(value);
+  }
 }
 
 }  // namespace zipfusion

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 namespace zipfusion {
@@ -85,6 +86,16 @@ TEST(KinectDisparity, FrameConversionIsTheElementFunctionPerPixel) {
   kinect_raw_frame_to_mm(static_cast<int>(raw.size()), raw.data(), mm.data());
   for (size_t i = 0; i < raw.size(); ++i) EXPECT_EQ(mm[i], kinect_raw_to_mm(raw[i])) << i;
   EXPECT_EQ(mm[6], 0);
+}
+
+// A device's buffer at an odd address (fakenect's is): read byte-wise, the same values.
+TEST(KinectDisparity, ABufferAtAnOddAddressConvertsTheSame) {
+  const std::vector<std::uint16_t> raw = {0, 541, 542, 800, 1052, 1053, 2047, 3000};
+  std::vector<unsigned char> bytes(1 + 2 * raw.size());
+  std::memcpy(bytes.data() + 1, raw.data(), 2 * raw.size());
+  std::vector<std::uint16_t> mm(raw.size(), 12345);
+  kinect_raw_bytes_to_mm(static_cast<int>(raw.size()), bytes.data() + 1, mm.data());
+  for (size_t i = 0; i < raw.size(); ++i) EXPECT_EQ(mm[i], kinect_raw_to_mm(raw[i])) << i;
 }
 
 }  // namespace
