@@ -15,6 +15,23 @@
 
 namespace zipfusion {
 
+//! Frames whose images are done with, kept for a producer to fill again: at most `most` frames'
+//! worth (after a stall a reader hands back a backlog's images, which kept would hold a stall's
+//! memory for the rest of the run). Used by LiveFrameQueue and LiveRig. Not thread-safe.
+class SpareLiveFrames {
+ public:
+  explicit SpareLiveFrames(size_t most) { frames_.reserve(most); }
+
+  //! Keeps `frame`'s images when it holds any and there is room, and leaves `frame` empty.
+  void keep(LiveFrame& frame);
+  //! Gives `frame`, when it holds no images, those of a kept frame, if any.
+  void refill(LiveFrame& frame);
+  int size() const { return static_cast<int>(frames_.size()); }
+
+ private:
+  std::vector<LiveFrame> frames_;  // never grows past its reserved capacity
+};
+
 class LiveFrameQueue {
  public:
   //! Holds at most `capacity` frames (≥ 1; throws InvalidInput), and the images of at most
@@ -37,13 +54,11 @@ class LiveFrameQueue {
   bool empty() const { return size_ == 0; }
   int capacity() const { return static_cast<int>(ring_.size()); }
   //! Frames whose images are kept for reuse (for tests).
-  int spare_count() const { return static_cast<int>(spares_.size()); }
+  int spare_count() const { return spares_.size(); }
 
  private:
-  void keep(LiveFrame& frame);
-
-  std::vector<LiveFrame> ring_;    // the queued frames from head_, size_ of them; the other slots hold nothing
-  std::vector<LiveFrame> spares_;  // images to fill again; never grows past its reserved capacity
+  std::vector<LiveFrame> ring_;  // the queued frames from head_, size_ of them; the other slots hold nothing
+  SpareLiveFrames spares_;       // images read or dropped, to fill again
   int head_ = 0, size_ = 0;
 };
 

@@ -35,8 +35,8 @@ LiveRig::LiveRig(std::vector<std::unique_ptr<LiveCamera>> cameras, const LiveRig
   pending_.resize(n);
   pending_times_.resize(n);
   incoming_.resize(n);
-  spares_.resize(n);
-  for (std::vector<LiveFrame>& spares : spares_) spares.reserve(kSpareFrames);
+  spares_.reserve(n);
+  for (size_t c = 0; c < n; ++c) spares_.emplace_back(kSpareFrames);  // each reserves its own (a copy would not)
   views_.resize(n);
   ended_.assign(n, 0);
   given_up_.assign(n, 0);
@@ -56,26 +56,18 @@ std::vector<LiveCameraStats> LiveRig::stats() const {
   return out;
 }
 
-void LiveRig::keep_spare(int c, LiveFrame& frame) {
-  if (frame.holds_images() && spares_[c].size() < kSpareFrames) spares_[c].push_back(std::move(frame));
-  frame = LiveFrame{};
-}
-
 bool LiveRig::next(LiveFrameSet& set) {
   const int n = camera_count();
   const double period_s = 1.0 / fps_;
   set.cameras.resize(n);
   for (int c = 0; c < n; ++c) {
     if (!set.cameras[c]) continue;
-    keep_spare(c, *set.cameras[c]);
+    spares_[c].keep(*set.cameras[c]);
     set.cameras[c].reset();
   }
   auto receive = [&](int c, double timeout_s) {
     LiveFrame& frame = incoming_[c];
-    if (!frame.holds_images() && !spares_[c].empty()) {
-      frame = std::move(spares_[c].back());
-      spares_[c].pop_back();
-    }
+    spares_[c].refill(frame);
     const Clock::time_point start = Clock::now();
     const ReadStatus status = cameras_[c]->read(frame, timeout_s);
     if (status == ReadStatus::kFrame) {
@@ -111,7 +103,7 @@ bool LiveRig::next(LiveFrameSet& set) {
     for (int c = 0; c < n; ++c) {
       const int k = step_.discard[c];
       if (k == 0) continue;
-      for (int i = 0; i < k; ++i) keep_spare(c, pending_[c][i]);
+      for (int i = 0; i < k; ++i) spares_[c].keep(pending_[c][i]);
       pending_[c].erase(pending_[c].begin(), pending_[c].begin() + k);
       pending_times_[c].erase(pending_times_[c].begin(), pending_times_[c].begin() + k);
       stats_[c].discarded_late += k;

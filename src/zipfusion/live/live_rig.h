@@ -20,6 +20,7 @@
 #include "zipfusion/io/capture.h"
 #include "zipfusion/live/frame_grouping.h"
 #include "zipfusion/live/live_camera.h"
+#include "zipfusion/live/live_frame_queue.h"
 
 namespace zipfusion {
 
@@ -76,14 +77,12 @@ class LiveRig {
   std::vector<std::unique_ptr<LiveCamera>> cameras_;
   LiveRigOptions options_;
   double fps_ = 30;
-  // Hands a frame's images back for its camera to fill again (at most kSpareFrames a camera).
-  void keep_spare(int c, LiveFrame& frame);
-  static constexpr size_t kSpareFrames = 8;
+  static constexpr size_t kSpareFrames = 8;  // a camera's images kept to fill again, at most
 
   std::vector<std::vector<LiveFrame>> pending_;
   std::vector<std::vector<double>> pending_times_;
   std::vector<LiveFrame> incoming_;             // per camera: what the next read() fills
-  std::vector<std::vector<LiveFrame>> spares_;  // per camera: images to give back through read()
+  std::vector<SpareLiveFrames> spares_;  // per camera: images to give back through read()
   std::vector<StreamView> views_;
   GroupStep step_;
   std::vector<char> ended_, given_up_;
