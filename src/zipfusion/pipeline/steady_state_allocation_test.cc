@@ -20,8 +20,8 @@
 #include "zipfusion/core/parallel.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/live/live_rig.h"
-#include "zipfusion/pipeline/background_registration.h"
 #include "zipfusion/live/replay_camera.h"
+#include "zipfusion/pipeline/background_registration.h"
 #include "zipfusion/pipeline/pipeline.h"
 #include "zipfusion/pipeline/reconstruct.h"
 #include "zipfusion/synth/fakenect_scene.h"
@@ -155,6 +155,15 @@ TEST_F(SteadyState, DecodingAllocatesNothing) {
   std::printf("decoding: at most %lld allocations a frame set after one pass\n", most);
 }
 
+// Called in the first sink call: holds it until the reconstruction has taken `sets` frame sets
+// (waiting at most `most_ms`), then a little longer, since the last one's reconstruction takes its
+// mesh as it starts, right after it is counted, and this mesh must not have come back by then. So
+// every mesh the pipeline can hold at once is made, whatever the threads' pace.
+void hold_until_taken(const std::atomic<int>& taken, int sets, int most_ms) {
+  for (int waited_ms = 0; taken < sets && waited_ms < most_ms; ++waited_ms) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+}
+
 // The whole pipeline (run_pipeline: the source thread decoding, the reconstruction, the sink
 // thread) over frame sets 0, 10 and 20 six times round, zipper without the filter: in the last two
 // rounds nothing is allocated between one sink call and the next, counted on every thread. Frame
@@ -194,14 +203,7 @@ TEST_F(SteadyState, PipelineAllocatesNothing) {
       [&](PipelineFrame& frame) {
         at_sink[sunk] = g_allocations.load();
         triangles[sunk] = static_cast<int>(frame.result.mesh.triangle_count());
-        if (sunk == 0) {
-          for (int waited_ms = 0; taken < options.queue_depth + 2 && waited_ms < 60000; ++waited_ms) {
-            std::this_thread::sleep_for(std::chrono::milliseconds(1));
-          }
-          // The fourth frame set's reconstruction takes its mesh as it starts, right after it is
-          // counted; this mesh must not have come back by then.
-          std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        }
+        if (sunk == 0) hold_until_taken(taken, options.queue_depth + 2, 60000);
         if (sunk == kSlowSinks[0] || sunk == kSlowSinks[1]) std::this_thread::sleep_for(std::chrono::milliseconds(150));
         ++sunk;
       },
@@ -309,12 +311,7 @@ TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
         sunk.push_back({static_cast<int>(frame.index), g_allocations.load(), static_cast<int>(frame.result.mesh.triangle_count()),
                         frame.result.cameras_used});
         const size_t call = sunk.size() - 1;
-        if (call == 0) {
-          for (int waited_ms = 0; taken < options.queue_depth + 2 && waited_ms < 10000; ++waited_ms) {
-            std::this_thread::sleep_for(std::chrono::milliseconds(1));
-          }
-          std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the source fills and drops meanwhile
-        }
+        if (call == 0) hold_until_taken(taken, options.queue_depth + 2, 10000);  // the source fills and drops meanwhile
         if (call == 1) stall_source = true;  // it then catches up, the reconstruction busy: four frame sets
         frame_seen[frame.index % kDumpFrames] = 1;
         if (warm_sink_calls < 0 && call >= 1 && std::ranges::count(frame_seen, 1) == kDumpFrames) warm_sink_calls = 0;
