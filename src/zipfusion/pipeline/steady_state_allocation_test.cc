@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <ostream>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -244,13 +245,15 @@ TEST_F(SteadyState, BackgroundRegistrationsHandOverAllocatesNothing) {
 
 // Live cameras: four fakenect dumps of the synthetic ring, replayed in a loop as the devices
 // delivered them (paced), through LiveRig and live_frame_source into the pipeline, with the policy
-// of `reconstruct --live` and `serve`: the source drops its oldest set rather than wait, so which
-// sets are reconstructed depends on the threads' pace. The images go round from the pipeline's
+// of `reconstruct --live` and, as a second case, of `serve --live` (LivePipeline below): the source
+// drops its oldest set rather than wait, so which sets are reconstructed depends on the threads'
+// pace. The images go round from the pipeline's
 // recycled frame sets back through the rig to the cameras (LiveFrameQueue for a device, the
 // replay's own buffers here), so once every buffer has grown nothing is allocated between sink
 // calls. Every buffer grows only once the pipeline has been through the changes of pace that need
 // the most of them, so the warm-up goes through them too: the first sink call waits until the
-// pipeline holds four meshes (one in the sink, two queued, one being built); the source then
+// pipeline holds every mesh it can (`reconstruct --live`: one in the sink, two queued, one being
+// built; `serve --live`: one in the sink, one queued); the source then
 // stalls, and as it catches up with the reconstruction busy, four frame sets exist (one being
 // filled, two queued, one being reconstructed). A mesh grows to the largest frame set's when it is
 // next taken, so the measurement starts eight sink calls after every frame of the dumps has been
@@ -261,7 +264,35 @@ TEST_F(SteadyState, BackgroundRegistrationsHandOverAllocatesNothing) {
 // change of pace, measured from the fourth pass) failed once in CI under load (1 and 2
 // allocations, probably one of these): a slow sink after its warm-up cost 6 allocations (a fourth
 // mesh's), a stalled live source 9 (a fourth frame set's), a mesh still growing 3.
-TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
+// The pipeline's options of a live command, and how many meshes they let it hold at once.
+struct LivePipeline {
+  const char* name;
+  PipelineOptions options;
+  bool skips_frames;  // a sink that is not ready for every third set (wants_frame), as serve's viewers
+  int most_meshes;
+};
+void PrintTo(const LivePipeline& pipeline, std::ostream* out) { *out << pipeline.name; }
+
+// `reconstruct --live`: the default queues, every set reconstructed. `serve --live`
+// (serve_command.cc): one set queued, the next set taken only once the sink has taken the last
+// mesh, and sets the viewers cannot take skipped without being reconstructed; before
+// 2026-12-07 only the first was measured.
+LivePipeline reconstruct_live() {
+  PipelineOptions options;
+  options.source_policy = QueuePolicy::kDropOldest;
+  return {"reconstruct_live", options, false, options.queue_depth + 2};
+}
+LivePipeline serve_live() {
+  PipelineOptions options;
+  options.source_policy = QueuePolicy::kDropOldest;
+  options.queue_depth = 1;
+  options.take_when_sink_ready = true;
+  return {"serve_live", options, true, 2};
+}
+
+class LiveSteadyState : public testing::TestWithParam<LivePipeline> {};
+
+TEST_P(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
   const fs::path dir = fs::temp_directory_path() / "zf_steady_state_live";
   fs::remove_all(dir);
   constexpr int kCameras = 4, kDumpFrames = 3;
@@ -298,10 +329,18 @@ TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
   int warm_sink_calls = -1;       // sink calls since every dump frame was seen, -1 before
   size_t first_measured = kMostSets;  // the sink call the measurement starts after
   std::atomic<bool> stall_source = false;
-  std::atomic<int> taken = 0;
-  PipelineOptions options;
-  options.source_policy = QueuePolicy::kDropOldest;
-  options.before_reconstruct = [&](const FrameSet&, FrameReconstructor&) { ++taken; };
+  std::atomic<int> made = 0;  // frame sets the reconstruction has taken to make a mesh of
+  PipelineOptions options = GetParam().options;
+  int offered = 0;  // sets the pipeline asked the sink about (wants_frame), on the reconstruction's thread
+  if (GetParam().skips_frames) {
+    options.wants_frame = [&] {
+      const bool wanted = offered++ % 3 != 2;
+      if (wanted) ++made;
+      return wanted;
+    };
+  } else {
+    options.before_reconstruct = [&](const FrameSet&, FrameReconstructor&) { ++made; };
+  }
   const LiveSourceOptions source_options{.max_frames = kMostSets, .observe = [&](const LiveFrameSet&) {
                                            if (stall_source.exchange(false)) std::this_thread::sleep_for(std::chrono::milliseconds(300));
                                          }};
@@ -311,7 +350,7 @@ TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
         sunk.push_back({static_cast<int>(frame.index), g_allocations.load(), static_cast<int>(frame.result.mesh.triangle_count()),
                         frame.result.cameras_used});
         const size_t call = sunk.size() - 1;
-        if (call == 0) hold_until_taken(taken, options.queue_depth + 2, 10000);  // the source fills and drops meanwhile
+        if (call == 0) hold_until_taken(made, GetParam().most_meshes, 10000);  // the source fills and drops meanwhile
         if (call == 1) stall_source = true;  // it then catches up, the reconstruction busy: four frame sets
         frame_seen[frame.index % kDumpFrames] = 1;
         if (warm_sink_calls < 0 && call >= 1 && std::ranges::count(frame_seen, 1) == kDumpFrames) warm_sink_calls = 0;
@@ -342,9 +381,16 @@ TEST(LiveSteadyState, ReplayedCamerasToSinkAllocateNothing) {
     EXPECT_EQ(sunk[i].allocations - sunk[i - 1].allocations, 0) << "between the sink calls of frame sets " << sunk[i - 1].index << " and "
                                                                 << sunk[i].index;
   }
-  std::printf("live: %zu frame sets reached the sink (%ld dropped); %lld allocations over %zu measured steps\n", sunk.size(), stats.dropped,
-              sunk[last].allocations - sunk[first_measured].allocations, kMeasuredSteps);
+  if (GetParam().skips_frames) {
+    EXPECT_GT(stats.unwanted, 0) << "the sink wanted every set";
+  }
+  std::printf("live (%s): %zu frame sets reached the sink (%ld dropped, %ld not wanted); %lld allocations over %zu measured steps\n",
+              GetParam().name, sunk.size(), stats.dropped, stats.unwanted, sunk[last].allocations - sunk[first_measured].allocations,
+              kMeasuredSteps);
 }
+
+INSTANTIATE_TEST_SUITE_P(Commands, LiveSteadyState, testing::Values(reconstruct_live(), serve_live()),
+                         [](const testing::TestParamInfo<LivePipeline>& param_info) { return std::string(param_info.param.name); });
 
 }  // namespace
 }  // namespace zipfusion
