@@ -26,7 +26,7 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
       ->check(CLI::IsMember({"auto", "background", "once", "off"}))
       ->capture_default_str();
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements, at least 1")->capture_default_str();
-  cmd->add_option("--register-window", args.background.window_frames, "background: newest offered frame sets refined together, in [1, 64]")
+  cmd->add_option("--register-window", args.background.window_frames, "background: newest frame sets handed over, refined together, in [1, 64]")
       ->capture_default_str();
   cmd->add_option("--lod", o.depth_level,
                   "Level of detail: reconstruct from every 2^LOD-th depth pixel, each the mean of its surface around it (1: a quarter of "

@@ -1,8 +1,8 @@
 #pragma once
 //! \file
 //! Registration in a background thread (paper Section III-A): the frame pipeline offers every
-//! frame set; every `every_frames` frames, when the worker is idle, a copy of the newest frame's
-//! depth joins a window of the last `window_frames` offered ones and the worker refines all poses
+//! frame set; every `every_frames` frames, when the worker is idle, a copy of that frame set (depth
+//! and colour) joins a window of the last `window_frames` handed over and the worker refines all poses
 //! by GPA-ICP (starting from the poses it last published) while reconstruction goes on. New poses
 //! are published by swapping one pointer; the pipeline picks them up between frames.
 //!
@@ -24,7 +24,7 @@ namespace zipfusion {
 
 struct BackgroundRegistrationOptions {
   int every_frames = 30;    // frames between two hand-overs (one second at 30 fps)
-  int window_frames = 4;    // offered frame sets refined together (the subject has moved between them)
+  int window_frames = 4;    // frame sets handed over, refined together (the subject has moved between them)
   RegistrationOptions registration{.finest_level = 2, .num_threads = 1};  // 3→2 levels: ~40 ms per frame set, one core
 
   void validate() const;  // throws InvalidInput naming the field
