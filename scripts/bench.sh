@@ -32,6 +32,19 @@ step() { echo "== $*" >&2; }
 step "samba-4cam: stages, threads, coarse-to-fine, memory over $SOAK frame sets"
 "$ZF" bench "$SAMBA" --rig "$SAMBA/ground_truth/rig.json" --frames "$FRAMES" --repeat 3 --soak "$SOAK" --json > "$OUT/samba.json"
 
+# Where zippering's time goes, as instructions by function: callgrind counts them the same in any
+# phase of the machine's speed, so they show what the wall times above cannot separate. Three calls
+# of samba-4cam frame 0 on one thread (the first grows the buffers), unfiltered (issue 4's case) and
+# with the paper's filter.
+step "samba-4cam: callgrind's instructions of zippering by function"
+zipper_function=$("$BUILD_DIR/zf_zipper_repeat" --callgrind-function)
+for depth in unfiltered filtered; do
+  flags=()
+  [[ "$depth" == unfiltered ]] && flags=(--unfiltered)
+  valgrind --tool=callgrind --callgrind-out-file="$OUT/callgrind_$depth.out" "--toggle-collect=$zipper_function" \
+    "$BUILD_DIR/zf_zipper_repeat" "${flags[@]}" --repeat 3 --threads 1 > /dev/null 2> "$OUT/callgrind_$depth.log"
+  callgrind_annotate --inclusive=yes "$OUT/callgrind_$depth.out" > "$OUT/callgrind_$depth.txt"
+done
 step "samba-4cam: quality of each mode (reconstruct + eval)"
 for mode in zipper separate; do
   # bilateral5x5: the filter over 5×5 pixels (σ 2 px), as `zipfusion bench`'s "+5x5 filter" columns.

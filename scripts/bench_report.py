@@ -249,6 +249,88 @@ def rewrite_readme(folder, path):
     os.replace(path + ".tmp", path)
 
 
+# Zippering's parts as callgrind names them (bench.sh's callgrind_*.txt: callgrind_annotate
+# --inclusive=yes), each with its depth in the table and what it does; a part's count is the largest
+# inclusive count of a function whose name starts with its prefix, or one of its prefixes (a
+# function's lambdas are listed under names that start with its own, but count less).
+ZIPPER_PARTS = [
+    ("all of zippering", "zipfusion::zipper_meshes(", 0,
+     "`zipper_meshes` on samba-4cam frame 0: four cameras, their overlapping pairs, every step below"),
+    ("ownership score", ("zipfusion::compute_smoothness(", "zipfusion::compute_border_distance("), 1,
+     "which camera keeps a surface two cameras see: without the filter each camera's smoothness over a 250-pixel window "
+     "of level 1 (row kernels); with it, the distance to its mesh's border"),
+    ("coarse levels", "zipfusion::downsample_mesh(", 1, "levels 1 and 2 of each camera's triangles, for the coarse-to-fine removal"),
+    ("overlap masks", "zipfusion::compute_overlap_mask(", 1,
+     "where each pair's meshes come within 2·d_r on the coarsest level: the later steps look only there"),
+    ("redundancy removal (FRBR, all levels)", "zipfusion::remove_redundant_boundaries(", 1,
+     "boundary triangles tested level by level, sweep after sweep: a projection into the other camera, an ownership test "
+     "and, where the other camera owns the surface, a window search"),
+    ("taking the seams", "zipfusion::take_seam(", 1,
+     "each pair's triangles within d_c of the other mesh along the line where they meet, taken out with their corners and "
+     "the kept edges that the seam must keep"),
+    ("stitching the seams", "zipfusion::stitch_seam(", 1,
+     "each seam's points put on their surfaces and halfway between the two layers, triangulated in 2-D, constrained, "
+     "faired and cleared of creases"),
+    ("CGAL's Delaunay insertion", "zipfusion::insert_points(", 2,
+     "CGAL's incremental insertion, each point located from the last one's face, then its flips: CGAL's own cost per point"),
+    ("fairing", "zipfusion::(anonymous namespace)::fair_seam(", 2, "the seam's points smoothed along their rays"),
+    ("constraints", "zipfusion::constrain(", 2, "the kept edges made edges of the triangulation: most already are, the rest by flips"),
+    ("window search", "zipfusion::has_triangle_near(", 1,
+     "inside removal and seams: is a triangle centre of the other mesh within d_r (d_c) of a projected point, searched "
+     "cell by cell outwards from it and ended at the first found"),
+    ("memset", "memset", 1, "clearing buffers (the first of the three calls also grows them)"),
+]
+
+
+def callgrind_counts(path):
+    """{function name: largest inclusive instruction count} from callgrind_annotate's listing, or None."""
+    if not os.path.exists(path):
+        return None
+    counts = {}
+    with open(path) as f:
+        for line in f:
+            fields = line.split(None, 2)
+            if len(fields) < 3 or not fields[1].startswith("(") or not fields[0].replace(",", "").isdigit():
+                continue
+            where = fields[2].rsplit(" [", 1)[0]
+            function = where.split(":", 1)[1] if ":" in where else where
+            count = int(fields[0].replace(",", ""))
+            counts[function] = max(counts.get(function, 0), count)
+    return counts
+
+
+def zipper_part_count(counts, prefixes):
+    if prefixes == "memset":
+        return sum(c for name, c in counts.items() if name.startswith("__memset"))
+    prefixes = (prefixes,) if isinstance(prefixes, str) else prefixes
+    return max((c for name, c in counts.items() if name.startswith(prefixes)), default=0)
+
+
+def zipper_parts_table(folder):
+    """Lines of the table of zippering's parts by instructions, or [] where bench.sh ran no callgrind."""
+    runs = [("unfiltered", callgrind_counts(os.path.join(folder, "callgrind_unfiltered.txt"))),
+            ("the paper's filter", callgrind_counts(os.path.join(folder, "callgrind_filtered.txt")))]
+    if any(counts is None for _, counts in runs):
+        return []
+    calls = 3  # bench.sh's --repeat
+    out = ["Inside zippering, by instructions (callgrind, which counts them the same whatever the machine's speed: "
+           f"`zf_zipper_repeat [--unfiltered] --repeat {calls} --threads 1` under `valgrind --tool=callgrind --toggle-collect=\"$(zf_zipper_repeat "
+           "--callgrind-function)\"`, samba-4cam frame 0; millions of instructions a frame set, the mean of the three calls, and "
+           "the share of all of zippering; a part includes what it calls, so the indented parts are inside the one above them "
+           "and the window search is inside removal and seams):", "",
+           "| part | " + " | ".join(name for name, _ in runs) + " | what it is |", "|---" * (len(runs) + 2) + "|"]
+    totals = [zipper_part_count(counts, ZIPPER_PARTS[0][1]) for _, counts in runs]
+    for label, prefix, depth, what in ZIPPER_PARTS:
+        cells = []
+        for (_, counts), total in zip(runs, totals):
+            count = zipper_part_count(counts, prefix)
+            cells.append(f"{count / calls / 1e6:.1f} M ({100 * count / total:.0f} %)" if total else "–")
+        indent = "&nbsp;&nbsp;" * depth
+        out.append(f"| {indent}{label} | " + " | ".join(cells) + f" | {what} |")
+    out.append("")
+    return out
+
+
 def main(folder):
     samba = load(folder, "samba.json")
     if samba is None:
@@ -434,9 +516,10 @@ def main(folder):
     sums = {n: sum(config(samba, n)["ms"][stage]["median"] for stage in STAGES[:-1]) for n in names}
     for stage in STAGES[:-1]:
         out.append(f"| {stage} | " + " | ".join(f"{100 * config(samba, n)['ms'][stage]['median'] / sums[n]:.0f} %" for n in names) + " |")
-    out += ["", "Inside the stages, see [profile.md](profile.md): `perf` and callgrind profiles taken apart from this run (per "
-            "function and per source line), instruction counts per rig, and every idea measured towards the targets, "
-            "kept or not, with an index of them at its top.", ""]
+    out += [""] + zipper_parts_table(folder)
+    out += ["More in [profile.md](profile.md): `perf` and callgrind profiles taken apart from this run (per function and per "
+            "source line), instruction counts per rig, and every idea measured towards the targets, kept or not, with an "
+            "index of them at its top.", ""]
     print("\n".join(out))
 
 

@@ -21,6 +21,7 @@ packages=(
   libgtest-dev libgmock-dev          # tests
   bsdutils                           # script(1): a test runs a command on a terminal (Debian installs it everywhere)
   libbenchmark-dev                   # micro-benchmarks
+  valgrind                           # bench: callgrind's instruction counts of zippering by function (docs/benchmarks.md)
   python3                            # scripts/bench_report.py writes docs/benchmarks.md
   chromium                           # the viewer's tests run in a real (headless) browser
   libopen3d-dev                      # bench only: Open3D TSDF/Poisson side by side (never in the library)
