@@ -278,7 +278,7 @@ ZIPPER_PARTS = [
     ("window search", "zipfusion::has_triangle_near(", 1,
      "inside removal and seams: is a triangle centre of the other mesh within d_r (d_c) of a projected point, searched "
      "cell by cell outwards from it and ended at the first found"),
-    ("memset", "memset", 1, "clearing buffers (the first of the three calls also grows them)"),
+    ("memset", "memset", 1, "clearing buffers"),
 ]
 
 
@@ -308,16 +308,18 @@ def zipper_part_count(counts, prefixes):
 
 def zipper_parts_table(folder):
     """Lines of the table of zippering's parts by instructions, or [] where bench.sh ran no callgrind."""
-    runs = [("unfiltered", callgrind_counts(os.path.join(folder, "callgrind_unfiltered.txt"))),
-            ("the paper's filter", callgrind_counts(os.path.join(folder, "callgrind_filtered.txt")))]
-    if any(counts is None for _, counts in runs):
-        return []
-    calls = 3  # bench.sh's --repeat
+    runs = []
+    for name, depth in [("unfiltered", "unfiltered"), ("the paper's filter", "filtered")]:
+        short, long = (callgrind_counts(os.path.join(folder, f"callgrind_{depth}_{calls}.txt")) for calls in (3, 6))
+        if short is None or long is None:
+            return []
+        runs.append((name, {function: count - short.get(function, 0) for function, count in long.items()}))
+    calls = 3  # the steady-state calls: bench.sh's six minus its three
     out = ["Inside zippering, by instructions (callgrind, which counts them the same whatever the machine's speed: "
-           f"`zf_zipper_repeat [--unfiltered] --repeat {calls} --threads 1` under `valgrind --tool=callgrind --toggle-collect=\"$(zf_zipper_repeat "
-           "--callgrind-function)\"`, samba-4cam frame 0; millions of instructions a frame set, the mean of the three calls, and "
-           "the share of all of zippering; a part includes what it calls, so the indented parts are inside the one above them "
-           "and the window search is inside removal and seams):", "",
+           "`zf_zipper_repeat [--unfiltered] --repeat N --threads 1` under `valgrind --tool=callgrind --toggle-collect=\"$(zf_zipper_repeat "
+           "--callgrind-function)\"`, samba-4cam frame 0, N = 6 minus N = 3, so that the first call's growing of buffers is "
+           "left out; millions of instructions a frame set, and the share of all of zippering; a part includes what it calls, so "
+           "the indented parts are inside the one above them and the window search is inside removal and seams):", "",
            "| part | " + " | ".join(name for name, _ in runs) + " | what it is |", "|---" * (len(runs) + 2) + "|"]
     totals = [zipper_part_count(counts, ZIPPER_PARTS[0][1]) for _, counts in runs]
     for label, prefix, depth, what in ZIPPER_PARTS:
