@@ -250,15 +250,17 @@ def rewrite_readme(folder, path):
 
 
 # Zippering's parts as callgrind names them (bench.sh's callgrind_*.txt: callgrind_annotate
-# --inclusive=yes), each with its depth in the table and what it does; a part's count is the largest
+# --inclusive=yes), each with its depth in the table and what it does. A part's count is the largest
 # inclusive count of a function whose name starts with its prefix, or one of its prefixes (a
-# function's lambdas are listed under names that start with its own, but count less).
+# function's lambdas are listed under names that start with its own, but count less). The parts of
+# depth 1 do not overlap; what they leave of the whole is "the rest". The window search and memset
+# run inside several of them, so they are listed apart.
+ZIPPER_WHOLE = ("all of zippering", "zipfusion::zipper_meshes(",
+                "`zipper_meshes` on samba-4cam frame 0: four cameras, their overlapping pairs, every step below")
 ZIPPER_PARTS = [
-    ("all of zippering", "zipfusion::zipper_meshes(", 0,
-     "`zipper_meshes` on samba-4cam frame 0: four cameras, their overlapping pairs, every step below"),
     ("ownership score", ("zipfusion::compute_smoothness(", "zipfusion::compute_border_distance("), 1,
-     "which camera keeps a surface two cameras see: without the filter each camera's smoothness over a 250-pixel window "
-     "of level 1 (row kernels); with it, the distance to its mesh's border"),
+     "which camera keeps a surface two cameras see: without the filter each camera's smoothness over a window of 250 "
+     "pixels (125 cells of level 1, row kernels); with it, the distance to its mesh's border"),
     ("coarse levels", "zipfusion::downsample_mesh(", 1, "levels 1 and 2 of each camera's triangles, for the coarse-to-fine removal"),
     ("overlap masks", "zipfusion::compute_overlap_mask(", 1,
      "where each pair's meshes come within 2·d_r on the coarsest level: the later steps look only there"),
@@ -271,24 +273,33 @@ ZIPPER_PARTS = [
     ("stitching the seams", "zipfusion::stitch_seam(", 1,
      "each seam's points put on their surfaces and halfway between the two layers, triangulated in 2-D, constrained, "
      "faired and cleared of creases"),
-    ("CGAL's Delaunay insertion", "zipfusion::insert_points(", 2,
-     "CGAL's incremental insertion, each point located from the last one's face, then its flips: CGAL's own cost per point"),
+    ("Delaunay insertion", "zipfusion::insert_points(", 2,
+     "CGAL's incremental insertion after the seam's hull, each point located from the last one's face, then its flips"),
     ("fairing", "zipfusion::(anonymous namespace)::fair_seam(", 2, "the seam's points smoothed along their rays"),
     ("constraints", "zipfusion::constrain(", 2, "the kept edges made edges of the triangulation: most already are, the rest by flips"),
-    ("window search", "zipfusion::has_triangle_near(", 1,
-     "inside removal and seams: is a triangle centre of the other mesh within d_r (d_c) of a projected point, searched "
-     "cell by cell outwards from it and ended at the first found"),
-    ("memset", "memset", 1, "clearing buffers"),
+]
+ZIPPER_REST = ("the rest", "pairs found, boundary lists, removals carried to the finer level, assembly, colours")
+ZIPPER_ACROSS = [
+    ("window search", "zipfusion::has_triangle_near(",
+     "inside removal, seams and the finding of pairs: is a triangle centre of the other mesh within a distance of a "
+     "projected point, searched cell by cell outwards from it and ended at the first found"),
+    ("memset", "memset", "clearing buffers, inside several of the parts"),
 ]
 
 
-def callgrind_counts(path):
-    """{function name: largest inclusive instruction count} from callgrind_annotate's listing, or None."""
+def callgrind_listing(path):
+    """(calls, {function name: largest inclusive instruction count}) from callgrind_annotate's
+    listing; calls is the profiled run's --repeat. None where the file is missing."""
     if not os.path.exists(path):
         return None
-    counts = {}
+    calls, counts = None, {}
     with open(path) as f:
         for line in f:
+            if line.startswith("Profiled target:"):
+                words = line.split()
+                if "--repeat" in words:
+                    calls = int(words[words.index("--repeat") + 1])
+                continue
             fields = line.split(None, 2)
             if len(fields) < 3 or not fields[1].startswith("(") or not fields[0].replace(",", "").isdigit():
                 continue
@@ -296,39 +307,67 @@ def callgrind_counts(path):
             function = where.split(":", 1)[1] if ":" in where else where
             count = int(fields[0].replace(",", ""))
             counts[function] = max(counts.get(function, 0), count)
-    return counts
+    if calls is None:
+        sys.exit(f"bench_report: {path}: no --repeat in its 'Profiled target' line")
+    return calls, counts
 
 
-def zipper_part_count(counts, prefixes):
+def zipper_part_count(counts, prefixes, path):
     if prefixes == "memset":
         return sum(c for name, c in counts.items() if name.startswith("__memset"))
     prefixes = (prefixes,) if isinstance(prefixes, str) else prefixes
-    return max((c for name, c in counts.items() if name.startswith(prefixes)), default=0)
+    count = max((c for name, c in counts.items() if name.startswith(prefixes)), default=0)
+    if count == 0:
+        sys.exit(f"bench_report: {path}: no instructions in {' or '.join(prefixes)}")
+    return count
 
 
 def zipper_parts_table(folder):
-    """Lines of the table of zippering's parts by instructions, or [] where bench.sh ran no callgrind."""
+    """Lines of the table of zippering's parts by instructions in steady state: the run of more calls
+    less the run of fewer, per call (the first call also grows the buffers)."""
     runs = []
     for name, depth in [("unfiltered", "unfiltered"), ("the paper's filter", "filtered")]:
-        short, long = (callgrind_counts(os.path.join(folder, f"callgrind_{depth}_{calls}.txt")) for calls in (3, 6))
-        if short is None or long is None:
-            return []
-        runs.append((name, {function: count - short.get(function, 0) for function, count in long.items()}))
-    calls = 3  # the steady-state calls: bench.sh's six minus its three
+        paths = sorted(p for p in os.listdir(folder) if p.startswith(f"callgrind_{depth}_") and p.endswith(".txt"))
+        listings = [callgrind_listing(os.path.join(folder, p)) for p in paths]
+        if len(listings) != 2:
+            return [f"No callgrind results in {folder} (scripts/bench.sh writes them where valgrind is installed).", ""]
+        (short_calls, short), (long_calls, long) = sorted(listings, key=lambda listing: listing[0])
+        if long_calls <= short_calls:
+            sys.exit(f"bench_report: {folder}: callgrind_{depth}_*.txt profile the same number of calls")
+        # A function in one listing only would be counted whole or not at all: left out, so a part
+        # that needs it stops the report.
+        steady = {function: count - short[function] for function, count in long.items() if function in short}
+        runs.append((name, long_calls - short_calls, steady, os.path.join(folder, paths[-1])))
     out = ["Inside zippering, by instructions (callgrind, which counts them the same whatever the machine's speed: "
-           "`zf_zipper_repeat [--unfiltered] --repeat N --threads 1` under `valgrind --tool=callgrind --toggle-collect=\"$(zf_zipper_repeat "
-           "--callgrind-function)\"`, samba-4cam frame 0, N = 6 minus N = 3, so that the first call's growing of buffers is "
-           "left out; millions of instructions a frame set, and the share of all of zippering; a part includes what it calls, so "
-           "the indented parts are inside the one above them and the window search is inside removal and seams):", "",
-           "| part | " + " | ".join(name for name, _ in runs) + " | what it is |", "|---" * (len(runs) + 2) + "|"]
-    totals = [zipper_part_count(counts, ZIPPER_PARTS[0][1]) for _, counts in runs]
-    for label, prefix, depth, what in ZIPPER_PARTS:
-        cells = []
-        for (_, counts), total in zip(runs, totals):
-            count = zipper_part_count(counts, prefix)
-            cells.append(f"{count / calls / 1e6:.1f} M ({100 * count / total:.0f} %)" if total else "–")
-        indent = "&nbsp;&nbsp;" * depth
-        out.append(f"| {indent}{label} | " + " | ".join(cells) + f" | {what} |")
+           "`zf_zipper_repeat --capture CAPTURE [--unfiltered] --repeat N --threads 1` under `valgrind --tool=callgrind "
+           "--toggle-collect=\"$(zf_zipper_repeat --callgrind-function)\"`, samba-4cam frame 0, N = 6 less N = 3, so that the "
+           "first call's growing of buffers is left out; millions of instructions a frame set, and the share of all of "
+           "zippering; a part includes what it calls, so the indented parts are inside the one above them):", "",
+           "| part | " + " | ".join(name for name, *_ in runs) + " | what it is |", "|---" * (len(runs) + 2) + "|"]
+
+    def cells(prefixes):
+        values = []
+        for _, calls, counts, path in runs:
+            count = zipper_part_count(counts, prefixes, path)
+            values.append(count)
+        return values
+
+    totals = cells(ZIPPER_WHOLE[1])
+
+    def row(label, depth, values, what):
+        shown = [f"{v / calls / 1e6:.1f} M ({100 * v / t:.0f} %)" for v, t, (_, calls, *_) in zip(values, totals, runs)]
+        out.append(f"| {'&nbsp;&nbsp;' * depth}{label} | " + " | ".join(shown) + f" | {what} |")
+
+    row(ZIPPER_WHOLE[0], 0, totals, ZIPPER_WHOLE[2])
+    rest = list(totals)
+    for label, prefixes, depth, what in ZIPPER_PARTS:
+        values = cells(prefixes)
+        if depth == 1:
+            rest = [r - v for r, v in zip(rest, values)]
+        row(label, depth, values, what)
+    row(ZIPPER_REST[0], 1, rest, ZIPPER_REST[1])
+    for label, prefixes, what in ZIPPER_ACROSS:
+        row(f"across the parts: {label}", 1, cells(prefixes), what)
     out.append("")
     return out
 
