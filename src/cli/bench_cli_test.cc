@@ -40,11 +40,18 @@ TEST_F(BenchCli, ReportsEveryStageOfEveryConfiguration) {
       EXPECT_LE(t["median"].get<double>(), t["p95"].get<double>()) << stage;
       EXPECT_LE(t["median"].get<double>(), c["ms"]["total"]["p95"].get<double>()) << stage;
     }
+    // The two stages added per frame set: each sum is at least either part and at most the frame
+    // set's total, so their median is too.
+    const double together = c["ms"]["redundancy+clipping"]["median"];
+    EXPECT_GE(together, c["ms"]["redundancy"]["median"].get<double>());
+    EXPECT_GE(together, c["ms"]["clipping"]["median"].get<double>());
+    EXPECT_LE(together, total);
   }
   // Only the filtered configurations filter; only the zipper ones zipper, with fewer triangles.
   EXPECT_GT(configs["zipper+filter"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_EQ(configs["zipper"]["ms"]["filter"]["median"].get<double>(), 0);
   EXPECT_EQ(configs["separate"]["ms"]["clipping"]["median"].get<double>(), 0);
+  EXPECT_EQ(configs["separate"]["ms"]["redundancy+clipping"]["median"].get<double>(), 0);
   EXPECT_GT(configs["zipper"]["ms"]["clipping"]["median"].get<double>(), 0);
   EXPECT_LT(configs["zipper"]["triangles"].get<double>(), configs["separate"]["triangles"].get<double>());
   EXPECT_EQ(configs["zipper 1 thread"]["triangles"], configs["zipper"]["triangles"]);
