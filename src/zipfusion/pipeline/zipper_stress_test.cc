@@ -4,7 +4,8 @@
 // output must be a well-formed mesh: every index in range, no triangle with a repeated corner, no
 // triangle twice, every position finite and near the capture volume, one colour per vertex, and
 // no edge shared by more than two triangles (the seams create no non-manifold edge). And a
-// reconstructor that reused its buffers on another frame set gives the same mesh, bit for bit.
+// reconstructor that reused its buffers on another frame set gives the same mesh, bit for bit,
+// as does a fresh one on one thread.
 //
 // Each case has its own seed (the base seed and its number), printed with it: ZF_STRESS_SEED
 // sets the base, ZF_STRESS_CASES how many run, ZF_STRESS_CASE runs that one case alone. A seed
@@ -202,6 +203,7 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   options.zipper.min_overlap_share = one_in(2) ? 0.01 : uniform(0, 0.05);  // higher shares only zipper less
   options.depth_level = one_in(4) ? 1 : 0;
   options.min_component_triangles = one_in(4) ? 50 : 0;
+  options.num_threads = integer(1, 4);
   // A third of the cases are reconstructed with poses off by up to 10° and 20 cm: layers that cross.
   Rig reconstruction_rig = rig;
   const bool off = one_in(3);
@@ -218,14 +220,15 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   std::snprintf(name, sizeof name,
                 "case %d (ZF_STRESS_SEED=%u ZF_STRESS_CASE=%d): %d cameras, radius %.2f m, height %.2f m, scattered %.0f deg %.2f m, %d px, "
                 "damages %s, poses off %.1f deg %.3f m, bilateral %d, ownership %d, d_r %.4f, L %d, beta %.2f, d_c %.4f, hole closing %d, "
-                "window %d, exponent %.1f, max edge %.4f, smoothing %d, fairing %d, crease watch %d, min overlap %.3f, lod %d, min component %d",
+                "window %d, exponent %.1f, max edge %.4f, smoothing %d, fairing %d, crease watch %d, min overlap %.3f, lod %d, min component %d, "
+                "threads %d",
                 number, base_seed, number, synth.cameras, synth.radius_m, synth.camera_height_m, scatter_deg, scatter_m, synth.depth_width,
                 damages.c_str(), off_deg, off_m, options.bilateral, static_cast<int>(options.zipper.ownership),
                 options.zipper.redundancy_distance_m, options.zipper.coarse_levels, options.zipper.coarse_shrink,
                 options.zipper.clipping_distance_m, options.zipper.hole_closing_px, options.zipper.smoothness_window_px,
                 options.zipper.smoothness_exponent, options.zipper.max_seam_edge_m, options.zipper.seam_smoothing_px,
                 options.zipper.seam_fairing_iterations, options.zipper.seam_crease_watch, options.zipper.min_overlap_share, options.depth_level,
-                options.min_component_triangles);
+                options.min_component_triangles, options.num_threads);
   SCOPED_TRACE(name);
   std::printf("%s\n", name);
   std::fflush(stdout);
@@ -250,6 +253,13 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   EXPECT_EQ(again.mesh.triangles, result.mesh.triangles);
   EXPECT_EQ(again.mesh.positions, result.mesh.positions);
   EXPECT_EQ(again.mesh.colors, result.mesh.colors);
+  // Nor does the number of threads: a fresh reconstructor on one thread gives the same mesh.
+  ReconstructOptions one_thread = options;
+  one_thread.num_threads = 1;
+  const FrameResult alone = FrameReconstructor(reconstruction_rig, one_thread).reconstruct(frames);
+  EXPECT_EQ(alone.mesh.triangles, result.mesh.triangles);
+  EXPECT_EQ(alone.mesh.positions, result.mesh.positions);
+  EXPECT_EQ(alone.mesh.colors, result.mesh.colors);
   return {.zippered = result.zipper.pairs > 0 && result.zipper.seam_added > 0 && result.mesh.triangle_count() > 0};
 }
 
