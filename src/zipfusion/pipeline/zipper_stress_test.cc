@@ -89,8 +89,6 @@ struct MeshCheck {
   int outside_volume = 0;
   int doubled_triangles = 0;
   int non_manifold_edges = 0;
-
-  int failures() const { return bad_indices + repeated_corners + non_finite + outside_volume + doubled_triangles + non_manifold_edges; }
 };
 
 // Kept triangles are the cameras' pixels inside the capture volume; seams move points by
@@ -160,14 +158,16 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   // up to a metre (looking past the subject, tilted, nearly upside down).
   const bool scattered = one_in(4);
   const double scatter_deg = scattered ? uniform(0, 60) : 0, scatter_m = scattered ? uniform(0, 1.0) : 0;
+  // `from` with each camera but the first turned by `deg` about a random axis and moved by `m`.
+  auto moved = [&](const Rig& from, double deg, double m) {
+    SynthOptions move = synth;
+    move.miscalibrate_deg = deg;
+    move.miscalibrate_m = m;
+    move.seed = random();
+    return miscalibrate(from, move);
+  };
   Rig rig = make_ring_rig(synth);
-  if (scattered) {
-    SynthOptions scatter = synth;
-    scatter.miscalibrate_deg = scatter_deg;
-    scatter.miscalibrate_m = scatter_m;
-    scatter.seed = random();
-    rig = miscalibrate(rig, scatter);
-  }
+  if (scattered) rig = moved(rig, scatter_deg, scatter_m);
   const TriangleMesh truth = subject_mesh(synth, 0);
   rig.volume = synthetic_capture_volume(truth);
   rig.frame_count = 1;
@@ -208,13 +208,7 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   Rig reconstruction_rig = rig;
   const bool off = one_in(3);
   const double off_deg = off ? uniform(0, 10) : 0, off_m = off ? uniform(0, 0.2) : 0;
-  if (off) {
-    SynthOptions wrong = synth;
-    wrong.miscalibrate_deg = off_deg;
-    wrong.miscalibrate_m = off_m;
-    wrong.seed = random();
-    reconstruction_rig = miscalibrate(rig, wrong);
-  }
+  if (off) reconstruction_rig = moved(rig, off_deg, off_m);
 
   char name[640];
   std::snprintf(name, sizeof name,
