@@ -188,6 +188,9 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   // 5 %, as more only leaves pairs out.
   ReconstructOptions options;
   options.bilateral = one_in(2);
+  options.filter.separable = one_in(3);
+  options.filter.radius_px = one_in(2) ? 6 : integer(1, 8);
+  options.filter.spatial_sigma_px = uniform(0.5, 6);
   options.zipper.ownership = static_cast<Ownership>(integer(0, 2));
   options.zipper.redundancy_distance_m = uniform(0.001, 0.1);
   options.zipper.coarse_levels = integer(0, 4);
@@ -201,7 +204,7 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   options.zipper.seam_fairing_iterations = integer(0, 8);
   options.zipper.seam_crease_watch = !one_in(2);
   options.zipper.min_overlap_share = one_in(2) ? 0.01 : uniform(0, 0.05);  // higher shares only zipper less
-  options.depth_level = one_in(4) ? 1 : 0;
+  options.depth_level = one_in(4) ? integer(1, 3) : 0;
   options.min_component_triangles = one_in(4) ? 50 : 0;
   options.num_threads = integer(1, 4);
   // A third of the cases are reconstructed with poses off by up to 10° and 20 cm: layers that cross.
@@ -213,11 +216,12 @@ CaseOutcome run_case(std::uint32_t base_seed, int number) {
   char name[640];
   std::snprintf(name, sizeof name,
                 "case %d (ZF_STRESS_SEED=%u ZF_STRESS_CASE=%d): %d cameras, radius %.2f m, height %.2f m, scattered %.0f deg %.2f m, %d px, "
-                "damages %s, poses off %.1f deg %.3f m, bilateral %d, ownership %d, d_r %.4f, L %d, beta %.2f, d_c %.4f, hole closing %d, "
+                "damages %s, poses off %.1f deg %.3f m, bilateral %d (separable %d, radius %d, sigma %.1f px), ownership %d, d_r %.4f, L %d, beta %.2f, d_c %.4f, hole closing %d, "
                 "window %d, exponent %.1f, max edge %.4f, smoothing %d, fairing %d, crease watch %d, min overlap %.3f, lod %d, min component %d, "
                 "threads %d",
                 number, base_seed, number, synth.cameras, synth.radius_m, synth.camera_height_m, scatter_deg, scatter_m, synth.depth_width,
-                damages.c_str(), off_deg, off_m, options.bilateral, static_cast<int>(options.zipper.ownership),
+                damages.c_str(), off_deg, off_m, options.bilateral, options.filter.separable, options.filter.radius_px,
+                options.filter.spatial_sigma_px, static_cast<int>(options.zipper.ownership),
                 options.zipper.redundancy_distance_m, options.zipper.coarse_levels, options.zipper.coarse_shrink,
                 options.zipper.clipping_distance_m, options.zipper.hole_closing_px, options.zipper.smoothness_window_px,
                 options.zipper.smoothness_exponent, options.zipper.max_seam_edge_m, options.zipper.seam_smoothing_px,
