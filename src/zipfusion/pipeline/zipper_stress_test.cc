@@ -135,7 +135,7 @@ void expect_well_formed(const TriangleMesh& mesh, const Box3d& volume, const cha
 
 // What a case made, for the checks across cases.
 struct CaseOutcome {
-  bool zippered = false;  // some pair overlapped and the mesh has triangles
+  bool zippered = false;  // some pair overlapped, the seams made triangles, and the mesh has triangles
 };
 
 CaseOutcome run_case(std::uint32_t base_seed, int number) {
