@@ -82,55 +82,40 @@ void damage_depth(DepthImage& depth, Damage damage, std::mt19937& random) {
   }
 }
 
-struct MeshCheck {
-  int bad_indices = 0;
-  int repeated_corners = 0;
-  int non_finite = 0;
-  int outside_volume = 0;
-  int doubled_triangles = 0;
-  int non_manifold_edges = 0;
-};
-
 // Kept triangles are the cameras' pixels inside the capture volume; seams move points by
 // millimetres to centimetres (their consensus, fairing and creases, bounded by d_r and the longest
 // seam edge, at most 0.1 m each). A point farther out than that margin was misplaced.
 constexpr double kVolumeMarginM = 0.25;
 
-MeshCheck check_mesh(const TriangleMesh& mesh, const Box3d& volume) {
-  MeshCheck check;
+void expect_well_formed(const TriangleMesh& mesh, const Box3d& volume, const char* which) {
   const int n = static_cast<int>(mesh.positions.size());
+  int bad_indices = 0, repeated_corners = 0;
   for (const Eigen::Vector3i& t : mesh.triangles) {
     if (t.minCoeff() < 0 || t.maxCoeff() >= n) {
-      ++check.bad_indices;
-      continue;
+      ++bad_indices;
+    } else if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+      ++repeated_corners;
     }
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) ++check.repeated_corners;
   }
   const Eigen::Vector3d margin = Eigen::Vector3d::Constant(kVolumeMarginM);
   const Box3d grown{volume.min - margin, volume.max + margin};
+  int non_finite = 0, outside_volume = 0;
   for (const Eigen::Vector3f& p : mesh.positions) {
     if (!p.allFinite()) {
-      ++check.non_finite;
+      ++non_finite;
     } else if (!grown.contains(p.cast<double>())) {
-      ++check.outside_volume;
+      ++outside_volume;
     }
   }
-  if (check.bad_indices == 0) {
-    check.doubled_triangles = count_doubled_triangles(mesh);
-    check.non_manifold_edges = count_non_manifold_edges(mesh);
-  }
-  return check;
-}
-
-void expect_well_formed(const TriangleMesh& mesh, const Box3d& volume, const char* which) {
-  const MeshCheck check = check_mesh(mesh, volume);
-  EXPECT_EQ(check.bad_indices, 0) << which;
-  EXPECT_EQ(check.repeated_corners, 0) << which;
-  EXPECT_EQ(check.non_finite, 0) << which;
-  EXPECT_EQ(check.outside_volume, 0) << which;
-  EXPECT_EQ(check.doubled_triangles, 0) << which;
-  EXPECT_EQ(check.non_manifold_edges, 0) << which;
+  EXPECT_EQ(bad_indices, 0) << which;
+  EXPECT_EQ(repeated_corners, 0) << which;
+  EXPECT_EQ(non_finite, 0) << which;
+  EXPECT_EQ(outside_volume, 0) << which;
   EXPECT_EQ(mesh.colors.size(), mesh.positions.size()) << which;  // the zipper colours every vertex, grey without a colour image
+  if (bad_indices == 0) {  // the counts below index the positions
+    EXPECT_EQ(count_doubled_triangles(mesh), 0) << which;
+    EXPECT_EQ(count_non_manifold_edges(mesh), 0) << which;
+  }
 }
 
 // What a case made, for the checks across cases.
