@@ -353,11 +353,7 @@ def zipper_parts_table(folder):
            "| part | " + " | ".join(name for name, *_ in runs) + " | what it is |", "|---" * (len(runs) + 2) + "|"]
 
     def cells(prefixes):
-        values = []
-        for _, calls, counts, path in runs:
-            count = zipper_part_count(counts, prefixes, path)
-            values.append(count)
-        return values
+        return [zipper_part_count(counts, prefixes, path) for _, _, counts, path in runs]
 
     totals = cells(ZIPPER_WHOLE[1])
 
