@@ -145,10 +145,11 @@ TEST_F(ServeCli, MakesFramesOnlyWhenTheViewerHasRoom) {
   std::smatch served;
   ASSERT_TRUE(std::regex_search(text, served, kServedLine)) << text;
   // One frame made per acknowledgement, one more after the last, and those made before the
-  // window was set: not the 150 frame sets of five seconds.
+  // window was set: not the 150 frame sets of five seconds. The others were not made; a machine
+  // too busy to read them at 30 fps (ThreadSanitizer's slowdown: 46 of 150) drops some first.
   EXPECT_GE(std::stoi(served[1]), 8) << text;
   EXPECT_LE(std::stoi(served[1]), before_window + 8 + 2) << text;
-  EXPECT_GT(std::stoi(served[3]), 100) << text;
+  EXPECT_GT(std::stoi(served[2]) + std::stoi(served[3]), 100) << text;
 }
 
 // Ctrl-C stops serve at once, also while it waits 20 s for a slow capture's next frame; the
