@@ -31,9 +31,14 @@ BackgroundRegistration::~BackgroundRegistration() {
 
 void BackgroundRegistration::offer(const FrameSet& frames) {
   const bool due = offered_++ % options_.every_frames == 0;
-  if (!due) return;
-  std::unique_lock lock(mutex_, std::try_to_lock);
-  if (!lock.owns_lock() || busy_ || pending_) return;  // the worker is still at it: skip, never wait
+  // The worker still at it: skip, never wait. Read before locking, so that the lock is taken
+  // only while the worker is idle, when it holds the lock for moments (checking its wait). A lock
+  // that was merely tried failed where the worker held it for such a moment, and dropped the
+  // hand-over of an idle worker (the first one, as the worker started: under ThreadSanitizer's
+  // slower threads every time).
+  if (!due || busy_ || pending_) return;
+  std::unique_lock lock(mutex_);
+  if (busy_ || pending_) return;  // between the worker's two writes as it took a hand-over
   if (static_cast<int>(window_.size()) < options_.window_frames) {
     window_.push_back(frames);
   } else {

@@ -8,8 +8,10 @@
 //!
 //! Thread safety: offer() and latest_poses() may be called from one pipeline thread while the
 //! worker runs; neither waits for a refinement (the only lock guards a pointer swap and a copy
-//! hand-over). The destructor stops the worker (waiting for a refinement in progress to end).
+//! hand-over, and offer() takes it only when the worker is idle). The destructor stops the worker
+//! (waiting for a refinement in progress to end).
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -67,8 +69,9 @@ class BackgroundRegistration {
   std::shared_ptr<const PublishedPoses> published_;
   std::vector<FrameSet> window_;    // guarded by mutex_; the worker copies it out
   std::vector<FrameSet> refining_;  // the worker's copy (worker thread only)
-  bool pending_ = false;          // a hand-over waits for the worker
-  bool busy_ = false;             // the worker is refining
+  // Written under mutex_; offer() reads them before taking it.
+  std::atomic<bool> pending_ = false;  // a hand-over waits for the worker
+  std::atomic<bool> busy_ = false;     // the worker is refining
   bool stop_ = false;
   int offered_ = 0;               // frames offered so far (pipeline thread only)
   std::jthread worker_;
