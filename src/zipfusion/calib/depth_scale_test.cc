@@ -50,7 +50,8 @@ TEST_F(DepthScale, FindsTheFactorARigIsOffBy) {
 TEST_F(DepthScale, ScalesOffsetsFromTheGaugeAndKeepsOrientations) {
   const Rig rig = make_ring_rig(ring());
   const Rig scaled = scale_rig(rig, 1, 1.1);
-  auto colour_centre = [](const CameraModel& m) { return (m.world_from_depth * m.color_from_depth.inverse()).translation(); };
+  // A vector, not Eigen's view of the translation: the view would outlive the product it reads.
+  auto colour_centre = [](const CameraModel& m) -> Eigen::Vector3d { return (m.world_from_depth * m.color_from_depth.inverse()).translation(); };
   for (size_t c = 0; c < rig.cameras.size(); ++c) {
     const Eigen::Vector3d expected = colour_centre(rig.cameras[1]) + 1.1 * (colour_centre(rig.cameras[c]) - colour_centre(rig.cameras[1]));
     EXPECT_LT((colour_centre(scaled.cameras[c]) - expected).norm(), 1e-9) << c;
