@@ -70,11 +70,7 @@ BoardOptions parse_board(const std::string& text, double square_m) {
     throw InvalidInput("--board: expected COLUMNSxROWS of inner corners (e.g. 9x6), got \"" + text + "\"");
   }
   BoardOptions board{.inner_columns = columns, .inner_rows = rows, .square_m = square_m};
-  try {
-    board.validate();
-  } catch (const InvalidInput& e) {
-    throw InvalidInput(std::string("--") + e.what());
-  }
+  board.validate();  // its messages name --board and --square
   return board;
 }
 
@@ -296,6 +292,7 @@ void run_floor(FloorArgs& args) {
   capture.check_output_outside(args.out, "--out");
   check_replaces_only_format(args.out, kRigFormat, "--out");
   // The floor does not move, and a few frames see it around a subject who does.
+  if (capture.frame_count() == 0) throw InvalidInput(kNoFrames);
   const FrameRange range = args.frames.empty() ? FrameRange{0, std::min(FloorOptions{}.end_frame, capture.frame_count())}
                                                : parse_frame_range(args.frames, capture.frame_count());
   args.options.first_frame = range.begin;

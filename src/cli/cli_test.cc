@@ -67,6 +67,20 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
   fs::copy(capture, broken, fs::copy_options::recursive);
   rig.replace(rig.find("\"fx\":580.0"), 10, "\"fx\":0");
   write_file_atomic(fs::path(broken) / "rig.json", rig);
+  // A capture of no frames: its rig.json says so and its folders hold no files.
+  const std::string no_frames = (dir_ / "no_frames").string();
+  fs::copy(capture, no_frames, fs::copy_options::recursive);
+  for (const char* camera : {"cam0", "cam1"}) {
+    for (const char* kind : {"depth", "color"}) {
+      fs::remove_all(fs::path(no_frames) / camera / kind);
+      fs::create_directories(fs::path(no_frames) / camera / kind);
+    }
+  }
+  std::string no_frames_rig = [&] { std::ifstream in(fs::path(capture) / "rig.json"); std::stringstream s; s << in.rdbuf(); return s.str(); }();
+  no_frames_rig.replace(no_frames_rig.find("\"frame_count\": 1"), 16, "\"frame_count\": 0");
+  write_file_atomic(fs::path(no_frames) / "rig.json", no_frames_rig);
+  const std::string a_file = (dir_ / "a_file").string();
+  write_file_atomic(a_file, "not a folder");
 
   const std::vector<Case> cases = {
       {"info " + (dir_ / "nowhere").string(), "nowhere: not a capture folder", 3},
@@ -104,8 +118,28 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --frames 5", "zipfusion: error: --frames: only with a capture (not with --checkerboard)"},
       {"synth --out " + (dir_ / "x").string() + " --wand --color-format jpg", "zipfusion: error: --color-format: a wand capture's colour is always PNG"},
       // An infinite depth or σ would pass as "positive" and reach stats.json as null.
-      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-depth inf", "zipfusion: error: --max-depth: must be finite"},
-      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --bilateral-sigma-px inf", "zipfusion: error: --bilateral-sigma-px: must be positive and finite"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-depth inf", "zipfusion: error: --max-depth: must be a finite number, got inf"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --bilateral-sigma-px inf",
+       "zipfusion: error: --bilateral-sigma-px: must be a finite number, got inf"},
+      // Every floating-point option refuses NaN, which CLI11's ranges let through: it turned the
+      // scale check of calibrate extrinsics off, and made --max-wait its default without a word.
+      {"calibrate extrinsics " + capture + " --scale-tolerance nan --out " + (dir_ / "x.json").string(),
+       "zipfusion: error: --scale-tolerance: must be a finite number, got nan"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-wait nan", "zipfusion: error: --max-wait: must be a finite number, got nan"},
+      // An empty number is not 0, an empty --out not an error found after all the work.
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --coarse-levels ''", "zipfusion: error: --coarse-levels: must be a number, got nothing"},
+      {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --min-depth ''", "zipfusion: error: --min-depth: must be a number, got nothing"},
+      {"register " + capture + " --out ''", "zipfusion: error: --out: must not be empty"},
+      {"calibrate floor " + capture + " --out ''", "zipfusion: error: --out: must not be empty"},
+      // An --out that is the wrong kind of thing is the user's choice: invalid input, as synth says.
+      {"reconstruct " + capture + " --out " + a_file, "a_file: is a file, not a folder (choose another --out)"},
+      {"register " + capture + " --out " + dir_.string(), ": is a folder, not a file to write"},
+      {"calibrate intrinsics --images '" + capture + "/cam0/color/*.jpg' --board 0x0 --out " + (dir_ / "x.json").string(),
+       "zipfusion: error: --board: needs 3 to 100 inner corners each way, got 0x0"},
+      // No frames at all is said so, not that a --frames never given selects none.
+      {"reconstruct " + no_frames + " --out " + (dir_ / "x").string(), "zipfusion: error: rig.json: frame_count: is 0 (the capture has no frames)"},
+      {"calibrate floor " + no_frames + " --out " + (dir_ / "x.json").string(), "zipfusion: error: rig.json: frame_count: is 0 (the capture has no frames)"},
+      {"info " + a_file, "a_file: not a capture folder (a file, not a folder)", 3},
       // Live cameras' options on a capture would be ignored.
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --max-wait 1 --stall-timeout 5",
        "zipfusion: error: --stall-timeout, --max-wait: only with --live"},
@@ -114,6 +148,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       // Usage errors that CLI11 finds: one line too, with the same prefix, exit 2.
       {"frobnicate", "zipfusion: error: unknown command \"frobnicate\" (commands: synth, info,"},
       {"", "zipfusion: error: A subcommand is required"},
+      {"calibrate bogus", "zipfusion: error: unknown calibrate command \"bogus\" (commands: intrinsics, extrinsics, floor)"},
       {"reconstruct " + capture + " --out " + (dir_ / "x").string() + " --threads -1", "zipfusion: error: --threads: Value -1 not in range 0 to 1024"},
       {"synth --out " + (dir_ / "x").string() + " --threads 100000", "--threads: Value 100000 not in range 0 to 1024"},
       {"eval " + capture + " " + (dir_ / "x").string() + " --spacing-mm nan", "zipfusion: error: --spacing-mm: must be a finite number, got nan"},

@@ -52,6 +52,15 @@ inline const CLI::Validator kFiniteNumber(
     },
     "FINITE");
 
+//! Checks that every command's options share, added after the commands: every number option
+//! refuses an empty value, which CLI11 reads as 0 (`--coarse-levels ""` ran with no coarse levels),
+//! and every floating-point one NaN and infinity, which CLI11's Range lets through
+//! (`--scale-tolerance nan` turned the calibration's scale check off); numbers are found by the
+//! type CLI11 gives them (INT, UINT, FLOAT), and keep their own checks. Every --out refuses an empty
+//! path, which some commands found only after all their work, when the result could not be moved
+//! into place.
+void check_every_option(CLI::App& app);
+
 //! A run stopped by a signal after it kept what it had made: the message says what. The process
 //! exits 128 + the signal's number, as a shell reports a process the signal ended (130 for Ctrl-C).
 struct Interrupted : std::runtime_error {

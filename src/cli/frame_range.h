@@ -15,6 +15,10 @@ struct FrameRange {
   int end = 0;  // exclusive
 };
 
+// A capture whose rig.json has no frames: every command that selects frames says so, not that
+// --frames (perhaps not given) selects none.
+inline constexpr const char* kNoFrames = "rig.json: frame_count: is 0 (the capture has no frames)";
+
 inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
   // Digits only: std::stoi would also take " 1", "+1" and "-0".
   auto number = [&](const std::string& s, int fallback) {
@@ -32,6 +36,7 @@ inline FrameRange parse_frame_range(const std::string& text, int frame_count) {
   auto past_the_end = [&] {
     return InvalidInput("--frames: \"" + text + "\" reaches past the last frame of a capture with " + std::to_string(frame_count) + " frames");
   };
+  if (frame_count == 0) throw InvalidInput(kNoFrames);
   FrameRange range{0, frame_count};
   const size_t colon = text.find(':');
   if (colon == std::string::npos) {

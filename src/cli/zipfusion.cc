@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -45,6 +46,35 @@ void print_diagnostic(const std::string& line) {
   std::fflush(stderr);
 }
 
+void check_every_option(CLI::App& app) {
+  static const CLI::Validator given_number(
+      [](std::string& text) -> std::string {
+        return text.find_first_not_of(" \t") == std::string::npos ? "must be a number, got nothing" : std::string();
+      },
+      "");
+  static const CLI::Validator given_path(
+      [](std::string& text) -> std::string { return text.empty() ? "must not be empty" : std::string(); }, "");
+  static const CLI::Validator finite_number(
+      [](std::string& text) -> std::string {
+        double value = 0;
+        try {
+          value = std::stod(text);
+        } catch (const std::exception&) {
+          return std::string();  // not a number at all: CLI11's conversion says so
+        }
+        return std::isfinite(value) ? std::string() : "must be a finite number, got " + text;
+      },
+      "");
+  for (CLI::Option* option : app.get_options()) {
+    const std::string type = option->get_type_name();
+    const bool floating = type.rfind("FLOAT", 0) == 0;
+    if (floating || type.rfind("INT", 0) == 0 || type.rfind("UINT", 0) == 0) option->check(given_number);
+    if (floating) option->check(finite_number);
+    if (option->check_lname("out")) option->check(given_path);
+  }
+  for (CLI::App* command : app.get_subcommands({})) check_every_option(*command);
+}
+
 void print_error(const std::string& line) {
   const std::lock_guard lock(stderr_mutex);
   if (!open_progress_line.empty()) std::fprintf(stderr, "\n");  // the progress stays as far as it got
@@ -69,18 +99,24 @@ int main(int argc, char** argv) {
   zipfusion::cli::add_calibrate_command(app);
   zipfusion::cli::add_serve_command(app);
   zipfusion::cli::add_record_command(app);
-  // CLI11 reads an unknown command as a stray argument and says only that a subcommand is required.
-  if (argc > 1 && argv[1][0] != '-') {
+  zipfusion::cli::check_every_option(app);
+  // CLI11 reads an unknown command (or `calibrate`'s subcommand) as a stray argument and says only
+  // that a subcommand is required.
+  const CLI::App* level = &app;
+  std::string level_name;  // "" or "calibrate "
+  for (int k = 1; k < argc && argv[k][0] != '-' && !level->get_subcommands({}).empty(); ++k) {
     std::string commands;
-    bool known = false;
-    for (const CLI::App* command : app.get_subcommands({})) {
+    const CLI::App* found = nullptr;
+    for (const CLI::App* command : level->get_subcommands({})) {
       commands += (commands.empty() ? "" : ", ") + command->get_name();
-      known = known || command->check_name(argv[1]);
+      if (command->check_name(argv[k])) found = command;
     }
-    if (!known) {
-      std::cerr << "zipfusion: error: unknown command \"" << argv[1] << "\" (commands: " << commands << ")\n";
+    if (found == nullptr) {
+      std::cerr << "zipfusion: error: unknown " << level_name << "command \"" << argv[k] << "\" (commands: " << commands << ")\n";
       return 2;
     }
+    level = found;
+    level_name += found->get_name() + " ";
   }
   try {
     app.parse(argc, argv);

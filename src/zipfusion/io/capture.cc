@@ -116,7 +116,9 @@ std::string frame_file_name(int frame, const std::string& extension) {
 
 Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw IoError(dir.string() + ": not a capture folder (no such directory)");
+  if (!fs::is_directory(dir, ec)) {
+    throw IoError(dir.string() + ": not a capture folder (" + (fs::exists(dir, ec) ? "a file, not a folder" : "no such folder") + ")");
+  }
   const fs::path rig_path = dir / "rig.json";
   if (!fs::exists(rig_path, ec)) throw IoError(rig_path.string() + ": missing (every capture has a rig.json)");
 

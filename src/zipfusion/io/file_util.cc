@@ -112,7 +112,7 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
 void check_output_file(const std::filesystem::path& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::is_directory(path, ec)) throw IoError(path.string() + ": is a folder, not a file to write");
+  if (fs::is_directory(path, ec)) throw InvalidInput(path.string() + ": is a folder, not a file to write");
   const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
   if (!fs::is_directory(folder, ec)) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " does not exist");
   if (::access(folder.c_str(), W_OK) != 0) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " is not writable");
@@ -311,7 +311,7 @@ StagedFolder::StagedFolder(const std::filesystem::path& asked_for, std::string_v
   std::error_code ec, made;
   existing_ = nearest_existing(dir_);
   made_dir_ = !fs::exists(dir_, ec);
-  if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec)) throw IoError(dir_.string() + ": is a file, not a folder (choose another " + std::string(option) + ")");
+  if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec)) throw InvalidInput(dir_.string() + ": is a file, not a folder (choose another " + std::string(option) + ")");
   fs::create_directories(dir_, made);
   if (!fs::is_directory(dir_, ec)) {
     throw IoError(dir_.string() + ": cannot create output folder" + (made ? " (" + made.message() + ")" : std::string()));
