@@ -290,6 +290,18 @@ TEST_F(CalibrateCli, LevelsTheRigOnTheFloorSeenInTheDepth) {
   EXPECT_EQ(r.err.rfind("zipfusion: error: " + floorless.string() + ": no floor found in frames 0 to 0: ", 0), 0u) << r.err;
   EXPECT_NE(r.err.find("; frame the floor in some camera's view\n"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(unwritten));
+  // Saturated depth (every pixel 65535 mm) is no floor: it was taken for one 35 m below the cameras.
+  const fs::path saturated = dir_ / "saturated";
+  fs::copy(floorless, saturated, fs::copy_options::recursive);
+  for (const CameraModel& camera : read_rig(saturated / "rig.json").cameras) {
+    for (const auto& file : fs::directory_iterator(saturated / camera.name / "depth")) {
+      write_depth_png(file.path(), DepthImage(camera.depth_intrinsics.width, camera.depth_intrinsics.height, 65535));
+    }
+  }
+  r = run("calibrate floor " + saturated.string() + " --out " + unwritten.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "zipfusion: error: " + saturated.string() + ": too little depth in frames 0 to 0 to find the floor (0 points; 14400 farther than 10 m left out)\n");
+  EXPECT_FALSE(fs::exists(unwritten));
   // Poses that do not fit the depth (every camera turned 90° about its optical axis, its depth
   // not): each camera's floor lands elsewhere, and the error says why the largest plane is none.
   Rig sideways = truth;

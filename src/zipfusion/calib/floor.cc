@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -56,6 +57,7 @@ struct DepthPoints {
   std::vector<Eigen::Vector3d> points;
   std::vector<int> camera;
   std::vector<std::string> unreadable;
+  long long beyond_range = 0;  // sampled depth farther than max_depth_m, not used
 };
 
 DepthPoints gather_depth_points(const Capture& capture, const FloorOptions& options) {
@@ -79,6 +81,10 @@ DepthPoints gather_depth_points(const Capture& capture, const FloorOptions& opti
           const unsigned short raw = image.depth(u, v);
           if (raw == 0) continue;
           const auto z = static_cast<float>(raw * rig.depth_unit_m);
+          if (z > options.max_depth_m) {
+            ++out.beyond_range;
+            continue;
+          }
           out.points.push_back(model.world_from_depth * unproject(model.depth_intrinsics, static_cast<float>(u), static_cast<float>(v), z).cast<double>());
           out.camera.push_back(c);
         }
@@ -221,6 +227,7 @@ void FloorOptions::validate() const {
   if (!(inlier_distance_m > 0.001 && inlier_distance_m < 0.5)) fail("--inlier-distance", "must be in (0.001, 0.5) metres");
   if (!(max_tilt_deg > 0 && max_tilt_deg < 90)) fail("max_tilt_deg", "must be in (0, 90) degrees");
   if (!(min_camera_height_m >= 0 && min_camera_height_m < 10)) fail("min_camera_height_m", "must be in [0, 10) metres");
+  if (!(max_depth_m > 0.5 && max_depth_m <= 100)) fail("max_depth_m", "must be in (0.5, 100] metres");
   if (ransac_iterations < 1 || ransac_iterations > 1000000) fail("ransac_iterations", "must be in [1, 1000000]");
   if (!(volume_half_width_m == 0 || (volume_half_width_m >= 0.1 && volume_half_width_m <= 50))) {
     fail("--volume-half-width", "must be 0 (automatic) or in [0.1, 50] metres");
@@ -260,8 +267,11 @@ FloorResult level_rig_to_floor(const Capture& capture, const FloorOptions& optio
   result.points = static_cast<int>(depth.points.size());
   const int last_frame = std::min(options.end_frame, capture.frame_count()) - 1;
   if (depth.points.size() < static_cast<size_t>(kFewestFloorPoints)) {
+    char farthest[32];
+    std::snprintf(farthest, sizeof farthest, "%g m", options.max_depth_m);
     throw InvalidInput(source + ": too little depth in frames " + std::to_string(options.first_frame) + " to " + std::to_string(last_frame) +
-                       " to find the floor (" + std::to_string(depth.points.size()) + " points)");
+                       " to find the floor (" + std::to_string(depth.points.size()) + " points" +
+                       (depth.beyond_range > 0 ? "; " + std::to_string(depth.beyond_range) + " farther than " + std::string(farthest) + " left out" : "") + ")");
   }
 
   // RANSAC over the planes that can be the floor; then, below the best, a level plane with a

@@ -32,6 +32,9 @@ struct FloorOptions {
   double inlier_distance_m = 0.03;     // RANSAC: a point this close to a plane is on it (a Kinect's noise at 3 m is ~2.5 cm)
   double max_tilt_deg = 60;            // a floor's normal lies within this of the cameras' up axis (degrees)
   double min_camera_height_m = 0.2;    // every camera stands at least this high above the floor
+  //! Depth beyond this is no measurement of a floor: consumer depth cameras reach 4–10 m, and a
+  //! saturated 16-bit value (65.535 m in millimetres) made a "floor" 35 m below every camera.
+  double max_depth_m = 10;
   //! Below the largest plane that can be the floor, a level plane with a fifth of its points is
   //! the floor (the floor under a table top). false: the largest plane is (a stage the subject
   //! stands on, with the room's floor around and below it; a floor around a pit).
