@@ -62,7 +62,8 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
   const std::string capture = (dir_ / "cap").string();
   ASSERT_EQ(run("synth --out " + capture + " --frames 1 --cameras 2 --noise none").exit_code, 0);
   // Break the rig: a focal length of zero.
-  std::string rig = [&] { std::ifstream in(fs::path(capture) / "rig.json"); std::stringstream s; s << in.rdbuf(); return s.str(); }();
+  const std::string original_rig = [&] { std::ifstream in(fs::path(capture) / "rig.json"); std::stringstream s; s << in.rdbuf(); return s.str(); }();
+  std::string rig = original_rig;
   const std::string broken = (dir_ / "broken").string();
   fs::copy(capture, broken, fs::copy_options::recursive);
   rig.replace(rig.find("\"fx\":580.0"), 10, "\"fx\":0");
@@ -76,7 +77,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       fs::create_directories(fs::path(no_frames) / camera / kind);
     }
   }
-  std::string no_frames_rig = [&] { std::ifstream in(fs::path(capture) / "rig.json"); std::stringstream s; s << in.rdbuf(); return s.str(); }();
+  std::string no_frames_rig = original_rig;
   no_frames_rig.replace(no_frames_rig.find("\"frame_count\": 1"), 16, "\"frame_count\": 0");
   write_file_atomic(fs::path(no_frames) / "rig.json", no_frames_rig);
   const std::string a_file = (dir_ / "a_file").string();
