@@ -118,7 +118,9 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     return;
   }
   if (!args.capture.empty()) throw InvalidInput("--live: takes no CAPTURE (frames come from --devices or --replay)");
-  if (register_mode == "once") throw InvalidInput("--register once: needs a capture; with --live use auto, background or off");
+  if (register_mode == "once" || register_mode == "once+background") {
+    throw InvalidInput("--register " + register_mode + ": needs a capture; with --live use auto, background or off");
+  }
   int max_frames = 0;
   if (!args.frames.empty()) {
     size_t used = 0;

@@ -20,10 +20,10 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--rig", args.rig, "Take the calibration (poses, intrinsics with distortion, color_from_depth, volume) from this rig.json instead (e.g. "
                   "CAPTURE/ground_truth/rig.json, calibrate's output); with --live, the devices' camera i takes camera i's");
   cmd->add_option("--register", args.register_mode,
-                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on up to 16 frames spread over the range, before the first), off, "
-                  "or auto: background unless rig.json marks its poses as trusted (\"poses_trusted\": true, written by synth, calibrate and "
-                  "register)")
-      ->check(CLI::IsMember({"auto", "background", "once", "off"}))
+                  "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on up to 16 frames spread over the range, before the first), "
+                  "once+background (once, then the worker from those poses), off, or auto: off for one camera or where rig.json marks its poses as trusted (\"poses_trusted\": true, "
+                  "written by synth, calibrate and register), else once+background for a capture and background for --live")
+      ->check(CLI::IsMember({"auto", "background", "once", "once+background", "off"}))
       ->capture_default_str();
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements, at least 1")->capture_default_str();
   cmd->add_option("--register-window", args.background.window_frames, "background: newest frame sets handed over, refined together, in [1, 64]")
@@ -133,25 +133,37 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();
-  register_mode_ = args.register_mode == "auto" ? (rig_.poses_trusted ? "off" : "background") : args.register_mode;
+  // auto refines an untrusted capture before its first frame: the worker alone took its first
+  // refinement from frame 0 and then one every 30 frames, and a rig 2° / 5 cm off left the
+  // meshes of the first second 17 mm off the truth, against 2.7 mm (docs/design.md).
+  // One camera has no other to be registered to.
+  register_mode_ = args.register_mode != "auto"                    ? args.register_mode
+                   : rig_.poses_trusted || rig_.cameras.size() < 2 ? "off"
+                   : capture != nullptr                            ? "once+background"
+                                                                   : "background";
+  const bool refine_first = register_mode_ == "once" || register_mode_ == "once+background";
 
-  // --register once: refine on frames spread over the range, then keep those poses.
+  // --register once: refine on frames spread over the range, then keep those poses (or start
+  // the worker from them).
   start_rig_ = rig_;
-  if (register_mode_ == "once") {
-    if (capture == nullptr) throw InvalidInput("--register once: needs a capture");
-    args.background.registration.validate();
+  if (refine_first) {
+    if (capture == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture");
+    RegistrationOptions& registration = args.once_registration;
+    registration.measure_fixed = false;  // the poses are used, not judged
+    registration.validate();
     std::vector<std::vector<Image<float>>> depth;
     const int count = std::min(args.once_frames, range.end - range.begin);
     for (int i = 0; i < count; ++i) {
-      depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), args.background.registration));
+      depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), registration));
     }
-    RegistrationOptions registration = args.background.registration;
-    registration.measure_fixed = false;  // the poses are used, not judged
     const RegistrationResult refined = register_rig(rig_, depth, registration);
     for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
     pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
+    first_version_ = 1;
   }
-  if (register_mode_ == "background") background_ = std::make_unique<BackgroundRegistration>(rig_, args.background);
+  if (register_mode_ == "background" || register_mode_ == "once+background") {
+    background_ = std::make_unique<BackgroundRegistration>(start_rig_, args.background);
+  }
   reconstructor_ = std::make_unique<FrameReconstructor>(start_rig_, options);
 }
 
@@ -165,7 +177,7 @@ PipelineOptions Reconstruction::pipeline_options() {
       if (poses->version != pose_version_) {
         target.set_poses(poses->world_from_depth);
         pose_version_ = poses->version;
-        pose_updates_.push_back({{"frame", set.index}, {"version", pose_version_}, {"refined_on_frame", poses->frame}});
+        pose_updates_.push_back({{"frame", set.index}, {"version", first_version_ + pose_version_}, {"refined_on_frame", poses->frame}});
       }
       background_->offer(set);
     };
