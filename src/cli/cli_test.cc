@@ -667,6 +667,35 @@ TEST_F(Cli, MissingFrameFilesAreAWarning) {
   EXPECT_NE(second.err.find("1 frame files missing (cam0 depth 1 colour 0)"), std::string::npos) << second.err;
 }
 
+// Depth in tenths of a millimetre read as millimetres (a unit typed wrong) puts every point
+// within half a metre of its camera, outside the volume: reconstruct made empty meshes and info
+// showed 0 % in the volume, both without a word.
+TEST_F(Cli, DepthThatNeverReachesTheVolumeIsWarnedOf) {
+  const fs::path capture = dir_ / "cap";
+  ASSERT_EQ(run("synth --out " + capture.string() + " --frames 2 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  const CommandResult good = run("reconstruct " + capture.string() + " --threads 1 --out " + (dir_ / "good").string());
+  ASSERT_EQ(good.exit_code, 0) << good.err;
+  EXPECT_EQ(good.err, "");
+  EXPECT_EQ(run("info " + capture.string()).out.find("no depth in the volume"), std::string::npos);
+
+  nlohmann::json rig = nlohmann::json::parse(read_file_bytes(capture / "rig.json"));
+  rig["depth_unit_m"] = 0.0001;
+  write_file_atomic(capture / "rig.json", rig.dump(2));
+  const CommandResult empty = run("reconstruct " + capture.string() + " --threads 1 --out " + (dir_ / "empty").string());
+  ASSERT_EQ(empty.exit_code, 0) << empty.err;
+  EXPECT_EQ(empty.err,
+            "reconstruct: warning: every mesh is empty; is there depth between --min-depth 0.4 and --max-depth 4.5 m inside the capture "
+            "volume (rig.json's depth_unit_m: 0.0001 m; `zipfusion info` shows where the depth lies)?\n");
+  const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(dir_ / "empty" / "stats.json"));
+  EXPECT_EQ(stats["frames"][0]["triangles"], 0);
+  const CommandResult info = run("info " + capture.string());
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("no depth in the volume: cam0, cam1; reconstruct keeps only depth inside it (check rig.json's depth_unit_m, "
+                          "0.0001 m, and volume, or reconstruct with --no-volume-crop)"),
+            std::string::npos)
+      << info.out;
+}
+
 // "DIR/" and "DIR/." (as a shell completes a folder) name DIR: the capture is written there, with
 // nothing left beside or inside it (the staging folder was made inside DIR, so renaming failed
 // after the whole capture was rendered, and an empty DIR stayed).

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -73,6 +74,15 @@ struct Interrupted : std::runtime_error {
 template <typename Json>
 std::string json_text(const Json& j, int indent = -1) {
   return j.dump(indent, ' ', false, Json::error_handler_t::replace);
+}
+
+//! printf's formatting into a string, of any length.
+std::string format(const char* fmt, auto... values) {
+  const int length = std::snprintf(nullptr, 0, fmt, values...);
+  if (length <= 0) return {};
+  std::string text(static_cast<size_t>(length), '\0');
+  std::snprintf(text.data(), text.size() + 1, fmt, values...);
+  return text;
 }
 
 //! Progress on standard error, only when it is a terminal: "label: done/total", redrawn in place

@@ -34,12 +34,6 @@ struct EvalArgs {
   EvalOptions options;
 };
 
-std::string format(const char* fmt, auto... values) {
-  char buffer[256];
-  std::snprintf(buffer, sizeof buffer, fmt, values...);
-  return buffer;
-}
-
 // A number for the table, or "-" when undefined.
 std::string cell(const char* fmt, double value) { return std::isfinite(value) ? format(fmt, value) : "-"; }
 

@@ -39,12 +39,6 @@ std::pair<double, double> view_direction_deg(const Rigid3d& world_from_depth) {
   return {std::atan2(z.y(), z.x()) * to_deg, std::asin(std::clamp(z.z(), -1.0, 1.0)) * to_deg};
 }
 
-std::string format(const char* fmt, auto... values) {
-  char buffer[256];
-  std::snprintf(buffer, sizeof buffer, fmt, values...);
-  return buffer;
-}
-
 void run_info(const InfoArgs& args) {
   const Capture capture = Capture::open(args.capture, {.strict = args.strict});
   const Rig& rig = capture.rig();
@@ -189,6 +183,19 @@ void run_info(const InfoArgs& args) {
     std::cout << format("%-8s %8s %8s %9.1f %10s %20s\n", rig.cameras[c].name.c_str(), format("%d", j["frames_with_depth"].get<int>()).c_str(),
                         format("%d", j["frames_with_color"].get<int>()).c_str(), 100 * j["valid_depth_fraction"].get<double>(),
                         in_volume.c_str(), depth_range.c_str());
+  }
+  // Cameras with depth of which none lies in the volume: reconstruct would make empty meshes of
+  // them (depth in tenths of a millimetre read as millimetres lands about the cameras).
+  std::string outside;
+  for (int c = 0; c < cameras; ++c) {
+    const auto& j = out["cameras"][c];
+    if (j.contains("in_volume_fraction") && j["frames_with_depth"].get<int>() > 0 && j["in_volume_fraction"].get<double>() == 0) {
+      outside += (outside.empty() ? "" : ", ") + rig.cameras[c].name;
+    }
+  }
+  if (!outside.empty()) {
+    std::cout << "\nno depth in the volume: " << outside << "; reconstruct keeps only depth inside it (check rig.json's depth_unit_m, "
+              << format("%g", rig.depth_unit_m) << " m, and volume, or reconstruct with --no-volume-crop)\n";
   }
   if (!capture.missing_frames().empty()) {
     std::cout << "\nmissing frame files: " << capture.missing_frames().size() << " (";

@@ -190,6 +190,15 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   }
   std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
             << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+  if (!frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f["triangles"] == 0; })) {
+    // Depth in tenths of a millimetre read as millimetres, or a volume beside the subject, made
+    // nothing but empty meshes without a word.
+    const ForegroundOptions& depth = r.options.foreground;
+    std::string where = format("between --min-depth %g and --max-depth %g m", depth.min_depth_m, depth.max_depth_m);
+    if (depth.crop_to_volume && in.rig.volume) where += " inside the capture volume";
+    if (!in.live) where += format(" (rig.json's depth_unit_m: %g m; `zipfusion info` shows where the depth lies)", in.rig.depth_unit_m);
+    print_diagnostic("reconstruct: warning: every mesh is empty; is there depth " + where + "?");
+  }
   if (const int unreadable = in.unreadable_count(); unreadable > 0) {
     const char* listed = unreadable > UnreadableFrames::kListed ? "the first listed above, all" : "listed above and";
     std::cout << "reconstruct: " << unreadable << " frame files could not be decoded (" << listed
