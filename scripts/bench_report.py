@@ -234,7 +234,7 @@ def readme_summary(folder):
         lod, lod_mean = quality("zipper_none_lod1")
         text += (" In those rounds, which alternate with Open3D's tensor TSDF (`VoxelBlockGrid`) at 10 mm, the filter "
                  "over 5×5 pixels instead of the paper's 13×13 (`--bilateral-radius 2 --bilateral-sigma-px 2`) took "
-                 f"{rounds('zipper+5x5 filter')}, with {five}. At level of detail 1 (`--lod 1`, every second depth pixel as "
+                 f"{rounds('zipper+5x5 filter')}, with {five}. At level of detail 1 without the filter (`--lod 1 --filter none`, every second depth pixel as "
                  f"the mean of its surface around it: {lod_mean['triangles']:.0f} triangles, against the TSDF's "
                  f"{tsdf['triangles']:.0f}) the rounds took {rounds('zipper lod 1')}, with {lod}.")
     return text + " The machine's speed varies by up to a third between minutes (docs/profile.md)."

@@ -92,6 +92,7 @@ TEST_F(Cli, BadInputGivesOneLineAndNonZeroExit) {
       {"info " + capture + " --sample 1.5", "zipfusion: error: --sample: must be a whole number, got 1.5"},
       {"synth --out " + (dir_ / "x").string() + " --miscalibrate half", "--miscalibrate: expected DEG,M"},
       {"synth --out " + (dir_ / "x").string() + " --cameras 0", "zipfusion: error: --cameras: must be in [1, 64]"},
+      {"synth --out " + (dir_ / "x").string() + " --fps 0.0001", "zipfusion: error: --fps: must be in [0.001, 1000]"},  // rig.json's range
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --views 0", "zipfusion: error: --views: must be in [1, 10000]"},
       {"synth --out " + (dir_ / "x").string() + " --checkerboard --board 2x2", "zipfusion: error: --board: needs 3 to 100 inner corners each way, got 2x2"},
       // synth writes only the wands calibrate takes.

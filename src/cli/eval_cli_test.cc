@@ -93,12 +93,14 @@ TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
   fs::create_directories(empty);
   struct Case {
     std::string args, expected;
+    int exit_code = 2;  // 3: a file or folder cannot be read
   };
   std::vector<Case> cases = {
       {"eval " + no_truth.string() + " " + empty.string(),
        (no_truth / "ground_truth" / "rig.json").string() + ": missing: eval needs a capture with ground truth (synth writes one)"},
       {"eval " + capture.string() + " " + empty.string(), empty.string() + ": no reconstruction"},
-      {"eval " + capture.string() + " " + (dir_ / "nowhere").string(), "nowhere: not a folder of reconstructions"},
+      {"eval " + capture.string() + " " + (dir_ / "nowhere").string(), "nowhere: not a folder of reconstructions (no such folder)", 3},
+      {"eval " + capture.string() + " " + (capture / "rig.json").string(), "rig.json: not a folder of reconstructions (a file, not a folder)", 3},
       {"eval " + capture.string() + " " + empty.string() + " --min-range 3 --max-range 2", "--max-range: must be above --min-range"},
   };
   // What is not a mesh is an error naming the file, not an empty reconstruction; nor is a frame
@@ -114,7 +116,7 @@ TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
                    (both / "000000.ply").string() + ", 000000.obj: two reconstructions of one frame; keep one"});
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
-    EXPECT_EQ(r.exit_code, 2) << c.args;
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.args;
     EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
   }

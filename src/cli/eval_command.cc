@@ -113,7 +113,11 @@ void run_eval(EvalArgs& args) {
   const Rig& true_rig = *capture.ground_truth_rig();
   const std::optional<Box3d>& volume = capture.rig().volume;
   std::error_code ec;
-  if (!fs::is_directory(args.recon_dir, ec)) throw InvalidInput(args.recon_dir + ": not a folder of reconstructions");
+  if (!fs::is_directory(args.recon_dir, ec)) {
+    // As a capture that is not there: an IoError (exit 3) saying which.
+    throw IoError(args.recon_dir + ": not a folder of reconstructions (" + (fs::exists(args.recon_dir, ec) ? "a file, not a folder" : "no such folder") +
+                  ")");
+  }
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
 
   // A frame without a reconstruction is scored as an empty mesh (nothing complete, no accuracy).

@@ -188,8 +188,8 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
                           " frame sets; wrote those to " + out_dir.string() + " with stats.json (\"interrupted\": true)",
                       stop_signal());
   }
-  std::cout << "wrote " << frames.size() << " meshes (" << r.mode << ") to " << out_dir.string() << ", median reconstruction "
-            << median_of(totals) << " ms per frame set; timings in " << (out_dir / "stats.json").string() << "\n";
+  std::cout << "wrote " << frames.size() << (frames.size() == 1 ? " mesh (" : " meshes (") << r.mode << ") to " << out_dir.string()
+            << format(", median reconstruction %.1f ms per frame set; timings in ", median_of(totals)) << (out_dir / "stats.json").string() << "\n";
   if (!frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f["triangles"] == 0; })) {
     // Depth in tenths of a millimetre read as millimetres, or a volume beside the subject, made
     // nothing but empty meshes without a word.

@@ -25,7 +25,7 @@ ReplayTimeline replay_timeline(const std::vector<std::filesystem::path>& dumps, 
 }
 
 void ReplayOptions::validate() const {
-  if (!(fps > 0 && fps <= 1000)) throw InvalidInput("replay.fps: must be in (0, 1000]");
+  if (!(fps >= 0.001 && fps <= 1000)) throw InvalidInput("replay.fps: must be in [0.001, 1000]");  // rig.json's range
   if (!(max_color_age_s >= 0 && max_color_age_s < 10)) throw InvalidInput("replay.max_color_age_s: must be in [0, 10) seconds");
   // A pass of a year is no recording's; the bound keeps the shifted times and ticks finite.
   if ((loop || paced) && !(timeline.period_s > 0 && timeline.period_s < 3.2e7)) {

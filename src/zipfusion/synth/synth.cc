@@ -107,7 +107,7 @@ void add_color_noise(ColorImage& color, double sigma, std::uint64_t seed) {
 void SynthOptions::validate() const {
   auto fail = [](const std::string& field, const std::string& problem) { throw InvalidInput(field + ": " + problem); };
   if (frames < 1 || frames > kMostFrames) fail("--frames", "must be in [1, " + std::to_string(kMostFrames) + "] (six-digit frame files)");
-  if (!(fps > 0 && fps <= 1000)) fail("--fps", "must be in (0, 1000]");
+  if (!(fps >= 0.001 && fps <= 1000)) fail("--fps", "must be in [0.001, 1000]");  // rig.json's range
   if (cameras < 1 || cameras > 64) fail("--cameras", "must be in [1, 64]");
   if (!(radius_m > 0.5 && radius_m < 20)) fail("--radius", "must be in (0.5, 20) metres");
   if (!(camera_height_m > 0 && camera_height_m < 10)) fail("--height", "must be in (0, 10) metres");
