@@ -83,6 +83,21 @@ TEST_F(EvalCli, MeasuresReconstructionsAgainstTheTruth) {
   EXPECT_EQ(table.out.find("\n     0 "), std::string::npos) << table.out;
 }
 
+// Meshes scored against another capture's truth are warned of, from their stats.json.
+TEST_F(EvalCli, MeshesOfAnotherCaptureAreWarnedOf) {
+  const fs::path first = dir_ / "first", second = dir_ / "second", meshes = dir_ / "meshes";
+  ASSERT_EQ(run("synth --out " + first.string() + " --frames 1 --cameras 2 --resolution 160x120 --noise none").exit_code, 0);
+  ASSERT_EQ(run("synth --out " + second.string() + " --frames 1 --cameras 2 --resolution 160x120 --noise none --seed 2").exit_code, 0);
+  ASSERT_EQ(run("reconstruct " + first.string() + " --threads 1 --out " + meshes.string()).exit_code, 0);
+  const CommandResult own = run("eval " + first.string() + " " + meshes.string());
+  ASSERT_EQ(own.exit_code, 0) << own.err;
+  EXPECT_EQ(own.err, "");
+  const CommandResult other = run("eval " + second.string() + " " + meshes.string());
+  ASSERT_EQ(other.exit_code, 0) << other.err;
+  EXPECT_EQ(other.err, "eval: warning: " + (meshes / "stats.json").string() + " says these meshes were made of " + first.string() + ", not " +
+                           second.string() + "\n");
+}
+
 TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {
   const fs::path capture = dir_ / "cap";
   ASSERT_EQ(run("synth --out " + capture.string() + " --frames 1 --cameras 1 --noise none").exit_code, 0);
