@@ -195,6 +195,14 @@ TEST_F(Cli, ReconstructWritesMeshesAndStats) {
   const nlohmann::json unfiltered_stats = nlohmann::json::parse(unfiltered_stats_file);
   EXPECT_EQ(unfiltered_stats["options"]["ownership"], "smoothness");
   EXPECT_EQ(unfiltered_stats["options"]["seam_smoothing_px"], 2);
+  // At a level of detail the options in pixels shrink: what ran is recorded beside what was given.
+  EXPECT_FALSE(stats.contains("options_applied"));
+  const std::string lod = (dir_ / "lod").string();
+  ASSERT_EQ(run("reconstruct " + capture + " --out " + lod + " --frames 1:2 --lod 1").exit_code, 0);
+  const nlohmann::json lod_stats = nlohmann::json::parse(read_file_bytes(fs::path(lod) / "stats.json"));
+  EXPECT_EQ(lod_stats["options"]["bilateral_radius_px"], 6);
+  EXPECT_EQ(lod_stats["options_applied"]["bilateral_radius_px"], 3);
+  EXPECT_EQ(lod_stats["options_applied"]["coarse_levels"], lod_stats["options"]["coarse_levels"].get<int>() - 1);
   for (const auto& f : stats["frames"]) {
     EXPECT_EQ(f["cameras_used"], 4);
     EXPECT_GT(f["ms"]["total"].get<double>(), 0.0);

@@ -158,7 +158,9 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   stats["mode"] = r.mode;
   stats["filter"] = r.filter;
   stats["rig"] = r.rig.empty() ? (in.live ? std::string("identity poses") : (fs::path(args.input.capture) / "rig.json").string()) : r.rig;
-  stats["options"] = options_json(r.options);
+  stats["options"] = options_json(r.options);  // as given
+  // At a level of detail the lengths in pixels shrink: what ran is written beside what was asked.
+  if (r.options.depth_level > 0) stats["options_applied"] = options_json(reconstruction.reconstructor().applied_options());
   // The SDC threshold each camera was triangulated with (from max_depth_jump_m and its focal length).
   nlohmann::ordered_json applied_jumps = nlohmann::ordered_json::array();
   for (int c = 0; c < static_cast<int>(in.rig.cameras.size()); ++c) applied_jumps.push_back(reconstruction.reconstructor().max_depth_jump_m(c));

@@ -111,6 +111,10 @@ class FrameReconstructor {
   //! pose per camera; not during reconstruct().
   void set_poses(const std::vector<Rigid3d>& world_from_depth);
 
+  //! The options as applied: at a level of detail (depth_level > 0) the lengths in pixels and the
+  //! coarse levels shrink with it (at_depth_level in reconstruct.cc).
+  const ReconstructOptions& applied_options() const { return options_; }
+
   //! The SDC threshold camera `c` is triangulated with: ReconstructOptions::sdc scaled by its focal
   //! length at the level of detail (sdc_depth_jump).
   double max_depth_jump_m(int c) const {
