@@ -339,6 +339,13 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
       std::make_shared<Session>(stream.release_socket(), server)->start(std::move(request));
       return;
     }
+    if (path == "/stream") {
+      // The stream, asked for without the WebSocket upgrade (curl, a browser's address bar).
+      auto response = text_response(request, http::status::upgrade_required, "the stream is a WebSocket: open / for the viewer");
+      response->set(http::field::upgrade, "websocket");
+      response->set(http::field::connection, "Upgrade, close");
+      return send(response);
+    }
     if (request.method() != http::verb::get && request.method() != http::verb::head) {
       return send(text_response(request, http::status::method_not_allowed, "GET only"));
     }

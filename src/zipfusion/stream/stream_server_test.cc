@@ -151,6 +151,10 @@ TEST_F(StreamServerTest, ServesTheViewerAndTheStream) {
   for (const char* bad : {"/../etc/passwd", "/draco/../../x", "/.hidden", "/a/b/c.js", "/missing.js", "/draco"}) {
     EXPECT_EQ(http_get(server.port(), bad).status, 404) << bad;
   }
+  // The stream asked for as a page: it says what it is.
+  const HttpReply plain = http_get(server.port(), "/stream");
+  EXPECT_EQ(plain.status, 426);
+  EXPECT_EQ(plain.body, "the stream is a WebSocket: open / for the viewer\n");
   // A target without its leading slash, another site's page, a name rebound to this machine:
   // refused, and the server goes on.
   EXPECT_EQ(raw_request(server.port(), "GET ?x HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"), "HTTP/1.1 400 Bad Request");
