@@ -697,6 +697,9 @@ TEST_F(Cli, DepthThatNeverReachesTheVolumeIsWarnedOf) {
             "volume (rig.json's depth_unit_m: 0.0001 m; `zipfusion info` shows where the depth lies)?\n");
   const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(dir_ / "empty" / "stats.json"));
   EXPECT_EQ(stats["frames"][0]["triangles"], 0);
+  // A refinement with no depth to match moves no camera, and no pose update is recorded.
+  ASSERT_EQ(run("reconstruct " + capture.string() + " --threads 1 --register once --out " + (dir_ / "once").string()).exit_code, 0);
+  EXPECT_EQ(nlohmann::json::parse(read_file_bytes(dir_ / "once" / "stats.json"))["pose_updates"], nlohmann::json::array());
   const CommandResult info = run("info " + capture.string());
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_NE(info.out.find("no depth in the volume: cam0, cam1; reconstruct keeps only depth inside it (check rig.json's depth_unit_m, "

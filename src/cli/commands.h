@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace zipfusion::cli {
 
@@ -76,8 +77,9 @@ std::string json_text(const Json& j, int indent = -1) {
   return j.dump(indent, ' ', false, Json::error_handler_t::replace);
 }
 
-//! printf's formatting into a string, of any length.
+//! printf's formatting into a string, of any length. Numbers and C strings only (.c_str()).
 std::string format(const char* fmt, auto... values) {
+  static_assert(((std::is_arithmetic_v<decltype(values)> || std::is_pointer_v<decltype(values)>) && ...), "printf takes numbers and C strings");
   const int length = std::snprintf(nullptr, 0, fmt, values...);
   if (length <= 0) return {};
   std::string text(static_cast<size_t>(length), '\0');

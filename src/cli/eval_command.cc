@@ -35,9 +35,9 @@ struct EvalArgs {
   EvalOptions options;
 };
 
-// A warning line where the reconstruction's stats.json names another capture that exists: meshes
-// of one capture scored against another's truth gave 147 mm without a word (a review). Nothing is
-// said where it cannot be told (no stats.json, live input, a path that no longer resolves).
+// A warning line where the reconstruction's stats.json names another capture folder that exists:
+// meshes of one capture scored against another's truth gave 147 mm without a word (a review).
+// Nothing is said where it cannot be told (no stats.json, live input, a folder no longer there).
 void warn_if_made_of_another_capture(const fs::path& recon_dir, const fs::path& capture) {
   std::error_code ec;
   const fs::path stats_path = recon_dir / "stats.json";
@@ -45,12 +45,12 @@ void warn_if_made_of_another_capture(const fs::path& recon_dir, const fs::path& 
   std::string made_of;
   try {
     const nlohmann::json stats = nlohmann::json::parse(read_file_bytes(stats_path));
-    if (!stats.is_object() || !stats.contains("capture") || !stats["capture"].is_string()) return;
-    made_of = stats["capture"].get<std::string>();
+    if (!stats.is_object() || !stats.contains("capture_folder") || !stats["capture_folder"].is_string()) return;
+    made_of = stats["capture_folder"].get<std::string>();  // absolute
   } catch (const std::exception&) {
     return;  // not one of ours: eval does not need it
   }
-  if (made_of.empty() || made_of == "live" || !fs::is_directory(made_of, ec)) return;
+  if (made_of.empty() || !fs::is_directory(made_of, ec)) return;
   const bool same = fs::equivalent(made_of, capture, ec);
   if (ec || same) return;
   print_diagnostic("eval: warning: " + stats_path.string() + " says these meshes were made of " + made_of + ", not " + capture.string());

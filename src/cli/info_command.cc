@@ -189,7 +189,7 @@ void run_info(const InfoArgs& args) {
   std::string outside;
   for (int c = 0; c < cameras; ++c) {
     const auto& j = out["cameras"][c];
-    if (j.contains("in_volume_fraction") && j["frames_with_depth"].get<int>() > 0 && j["in_volume_fraction"].get<double>() == 0) {
+    if (j.contains("in_volume_fraction") && !j["depth_m"].is_null() && j["in_volume_fraction"].get<double>() == 0) {
       outside += (outside.empty() ? "" : ", ") + rig.cameras[c].name;
     }
   }

@@ -144,6 +144,8 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
 
   nlohmann::ordered_json stats;
   stats["capture"] = in.live ? "live" : args.input.capture;
+  // eval tells meshes of another capture by it (the path as typed is relative to where this ran).
+  if (!in.live) stats["capture_folder"] = fs::absolute(args.input.capture).lexically_normal().string();
   if (in.live) {
     nlohmann::ordered_json devices = nlohmann::json::array();
     const std::vector<LiveCameraStats> live_stats = in.live->stats();
@@ -192,7 +194,10 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   }
   std::cout << "wrote " << frames.size() << (frames.size() == 1 ? " mesh (" : " meshes (") << r.mode << ") to " << out_dir.string()
             << format(", median reconstruction %.1f ms per frame set; timings in ", median_of(totals)) << (out_dir / "stats.json").string() << "\n";
-  if (!frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f["triangles"] == 0; })) {
+  // (Not where --min-component dropped pieces: then that is why.)
+  if (!frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) {
+        return f["triangles"] == 0 && f.value("small_component_triangles", 0) == 0;
+      })) {
     // Depth in tenths of a millimetre read as millimetres, or a volume beside the subject, made
     // nothing but empty meshes without a word.
     const ForegroundOptions& depth = r.options.foreground;

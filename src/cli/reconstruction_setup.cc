@@ -148,8 +148,9 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   start_rig_ = rig_;
   if (refine_first) {
     if (capture == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture");
-    RegistrationOptions& registration = args.once_registration;
+    RegistrationOptions registration = args.once_registration;
     registration.measure_fixed = false;  // the poses are used, not judged
+    registration.num_threads = options.num_threads;
     registration.validate();
     std::vector<std::vector<Image<float>>> depth;
     const int count = std::min(args.once_frames, range.end - range.begin);
@@ -157,9 +158,15 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
       depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), registration));
     }
     const RegistrationResult refined = register_rig(rig_, depth, registration);
-    for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
-    pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
-    first_version_ = 1;
+    // Only cameras joined to the held one move; where none did (no depth in the volume, no
+    // overlap), the poses are as given and no update is recorded.
+    int joined = 0;
+    for (size_t c = 0; c < refined.joined_to_gauge.size(); ++c) joined += refined.joined_to_gauge[c] && static_cast<int>(c) != refined.gauge;
+    if (joined > 0) {
+      for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
+      pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
+      first_version_ = 1;
+    }
   }
   if (register_mode_ == "background" || register_mode_ == "once+background") {
     background_ = std::make_unique<BackgroundRegistration>(start_rig_, args.background);

@@ -24,8 +24,8 @@ struct ReconstructionArgs {
   bool no_volume_crop = false;
   ReconstructOptions options;
   BackgroundRegistrationOptions background;
-  // --register once: `register`'s defaults (levels 3→1, every core: nothing else runs yet), not
-  // the worker's 3→2 on one core; on a 3-camera rig 2° / 5 cm off the meshes came out 2.5 mm
+  // --register once: `register`'s defaults (levels 3→1, --threads cores: nothing else runs yet),
+  // not the worker's 3→2 on one core; on a 3-camera rig 2° / 5 cm off the meshes came out 2.5 mm
   // from the truth, against 4.5 mm, for about a second more before the first frame.
   RegistrationOptions once_registration;
   int once_frames = 16;

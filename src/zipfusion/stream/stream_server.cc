@@ -339,15 +339,15 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
       std::make_shared<Session>(stream.release_socket(), server)->start(std::move(request));
       return;
     }
+    if (request.method() != http::verb::get && request.method() != http::verb::head) {
+      return send(text_response(request, http::status::method_not_allowed, "GET only"));
+    }
     if (path == "/stream") {
       // The stream, asked for without the WebSocket upgrade (curl, a browser's address bar).
       auto response = text_response(request, http::status::upgrade_required, "the stream is a WebSocket: open / for the viewer");
       response->set(http::field::upgrade, "websocket");
       response->set(http::field::connection, "Upgrade, close");
       return send(response);
-    }
-    if (request.method() != http::verb::get && request.method() != http::verb::head) {
-      return send(text_response(request, http::status::method_not_allowed, "GET only"));
     }
     const std::string relative = path == "/" ? "index.html" : path.substr(1);
     if (server.options.web_root.empty() || !safe_relative_path(relative)) return send(text_response(request, http::status::not_found, "not found"));
