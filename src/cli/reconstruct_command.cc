@@ -18,6 +18,7 @@
 #include "zipfusion/io/file_util.h"
 #include "zipfusion/io/mesh_io.h"
 #include "zipfusion/pipeline/pipeline.h"
+#include "zipfusion/registration/gpa_icp.h"
 
 namespace zipfusion::cli {
 namespace {
@@ -84,6 +85,13 @@ void run_reconstruct(ReconstructArgs& args) {
   try {
     check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
     Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+    if (!reconstruction.pose_updates().empty()) {
+      // Refined before the first frame: how far the calibration was off is worth a line.
+      const RelativePoseError moved =
+          worst_relative_pose_error(world_from_depth_poses(reconstruction.rig()), world_from_depth_poses(in.rig));
+      std::cout << format("reconstruct: poses refined before the first frame; cameras moved by up to %.1f mm and %.2f deg relative to %s\n",
+                          moved.translation_m * 1000, moved.rotation_deg, in.rig.cameras[0].name.c_str());
+    }
     if (!in.live && stop_requested()) throw Interrupted("reconstruct: stopped by a signal before the first frame set; nothing written", stop_signal());
     write_reconstruction(args, in, reconstruction, out);
   } catch (const IoError& e) {

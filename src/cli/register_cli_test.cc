@@ -69,6 +69,14 @@ TEST_F(RegisterCli, AnUntrustedCaptureIsRefinedBeforeItsFirstFrameByDefault) {
     const std::string out = (dir_ / name).string();
     const CommandResult made = run("reconstruct " + capture + " --frames 0:4 --out " + out + extra);
     EXPECT_EQ(made.exit_code, 0) << made.err;
+    // Says so where the poses were refined first, and how far they moved (2° / 5 cm here).
+    const std::regex moved("reconstruct: poses refined before the first frame; cameras moved by up to ([0-9.]+) mm and ([0-9.]+) deg relative to cam0\n");
+    std::smatch match;
+    EXPECT_EQ(std::regex_search(made.out, match, moved), extra.empty()) << made.out;
+    if (extra.empty() && match.size() == 3) {
+      EXPECT_GT(std::stod(match[1]), 30);
+      EXPECT_GT(std::stod(match[2]), 1.5);
+    }
     const CommandResult scored = run("eval " + capture + " " + out + " --json");
     EXPECT_EQ(scored.exit_code, 0) << scored.err;
     const nlohmann::json frame = nlohmann::json::parse(scored.out).at("frames").at(0);
