@@ -50,7 +50,7 @@ void warn_if_made_of_another_capture(const fs::path& recon_dir, const fs::path& 
   } catch (const std::exception&) {
     return;  // not one of ours: eval does not need it
   }
-  if (made_of.empty() || !fs::is_directory(made_of, ec)) return;
+  if (!fs::is_directory(made_of, ec)) return;
   const bool same = fs::equivalent(made_of, capture, ec);
   if (ec || same) return;
   print_diagnostic("eval: warning: " + stats_path.string() + " says these meshes were made of " + made_of + ", not " + capture.string());
@@ -134,12 +134,7 @@ void run_eval(EvalArgs& args) {
   }
   const Rig& true_rig = *capture.ground_truth_rig();
   const std::optional<Box3d>& volume = capture.rig().volume;
-  std::error_code ec;
-  if (!fs::is_directory(args.recon_dir, ec)) {
-    // As a capture that is not there: an IoError (exit 3) saying which.
-    throw IoError(args.recon_dir + ": not a folder of reconstructions (" + (fs::exists(args.recon_dir, ec) ? "a file, not a folder" : "no such folder") +
-                  ")");
-  }
+  check_input_folder(args.recon_dir, "a folder of reconstructions");
   warn_if_made_of_another_capture(args.recon_dir, args.capture);
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
 

@@ -13,6 +13,7 @@
 
 #include "zipfusion/core/error.h"
 #include "zipfusion/core/parallel.h"
+#include "zipfusion/io/file_util.h"
 
 namespace zipfusion {
 namespace {
@@ -115,10 +116,8 @@ std::string frame_file_name(int frame, const std::string& extension) {
 }
 
 Capture Capture::open(const fs::path& dir, const CaptureOpenOptions& options) {
+  check_input_folder(dir, "a capture folder");
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) {
-    throw IoError(dir.string() + ": not a capture folder (" + (fs::exists(dir, ec) ? "a file, not a folder" : "no such folder") + ")");
-  }
   const fs::path rig_path = dir / "rig.json";
   if (!fs::exists(rig_path, ec)) throw IoError(rig_path.string() + ": missing (every capture has a rig.json)");
 

@@ -109,6 +109,13 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
   write_file_atomic(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
+void check_input_folder(const std::filesystem::path& path, std::string_view what) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return;
+  throw IoError(path.string() + ": not " + std::string(what) + " (" + (fs::exists(path, ec) ? "a file, not a folder" : "no such folder") + ")");
+}
+
 void check_output_file(const std::filesystem::path& path) {
   namespace fs = std::filesystem;
   std::error_code ec;

@@ -30,6 +30,10 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view text)
 //! they write one file, checked first so that the work is not lost.
 void check_output_file(const std::filesystem::path& path);
 
+//! Throws IoError "`path`: not `what` (a file, not a folder)", or "(no such folder)", unless
+//! `path` is a folder: what an input folder that is not there gets.
+void check_input_folder(const std::filesystem::path& path, std::string_view what);
+
 //! The folder a path names, without trailing separators or "." components: "out/" and "out/." are
 //! "out"; "." and "/" stay.
 std::filesystem::path folder_path(const std::filesystem::path& dir);
