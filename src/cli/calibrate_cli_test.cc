@@ -604,7 +604,7 @@ TEST_F(CalibrateCli, BadInputIsOneLineNamingTheFieldAndExitCode2) {
   r = run("calibrate floor " + capture.string() + " --out /proc/zf_calibrate_cli_test.json");
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.out, "");
-  EXPECT_EQ(r.err.rfind("zipfusion: error: /proc/zf_calibrate_cli_test.json: cannot write: folder /proc: ", 0), 0u) << r.err;
+  EXPECT_EQ(r.err, "zipfusion: error: /proc/zf_calibrate_cli_test.json: cannot write: folder /proc does not take new files\n");
 }
 
 }  // namespace

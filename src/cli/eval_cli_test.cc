@@ -96,6 +96,13 @@ TEST_F(EvalCli, MeshesOfAnotherCaptureAreWarnedOf) {
   ASSERT_EQ(other.exit_code, 0) << other.err;
   EXPECT_EQ(other.err, "eval: warning: " + (meshes / "stats.json").string() + " says these meshes were made of " + first.string() + ", not " +
                            second.string() + "\n");
+  // Meshes numbered past the capture's frames cannot be scored; said so, and the score is the same.
+  fs::copy_file(meshes / "000000.ply", meshes / "000003.ply");
+  fs::copy_file(meshes / "000000.ply", meshes / "000001.ply");
+  const CommandResult beyond = run("eval " + first.string() + " " + meshes.string());
+  ASSERT_EQ(beyond.exit_code, 0) << beyond.err;
+  EXPECT_EQ(beyond.err, "eval: warning: " + meshes.string() + ": 2 meshes numbered past the capture's last frame (000000), from 000001 on; not scored\n");
+  EXPECT_EQ(beyond.out, own.out);
 }
 
 TEST_F(EvalCli, BadInputGivesOneLineAndExitTwo) {

@@ -1,5 +1,6 @@
 // zipfusion eval: quality of reconstructed meshes against a synthetic capture's ground truth.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -54,6 +55,27 @@ void warn_if_made_of_another_capture(const fs::path& recon_dir, const fs::path& 
   const bool same = fs::equivalent(made_of, capture, ec);
   if (ec || same) return;
   print_diagnostic("eval: warning: " + stats_path.string() + " says these meshes were made of " + made_of + ", not " + capture.string());
+}
+
+// A warning line where the folder holds meshes numbered past the capture's last frame: they
+// cannot be scored, and were left out without a word (a review: 10 meshes, 6 frames, "6 of 6").
+void warn_of_meshes_beyond_capture(const fs::path& recon_dir, int frame_count) {
+  int beyond = 0, first = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& entry : fs::directory_iterator(recon_dir, ec)) {
+    const fs::path name = entry.path().filename();
+    const std::string stem = name.stem().string();
+    if (name.extension() != ".ply" && name.extension() != ".obj") continue;
+    // NNNNNN, wider past frame 999999 (as frame_file_name writes them)
+    if (stem.size() < 6 || stem.size() > 9 || stem.find_first_not_of("0123456789") != std::string::npos) continue;
+    const int frame = std::stoi(stem);
+    if (frame < frame_count) continue;
+    first = beyond == 0 ? frame : std::min(first, frame);
+    ++beyond;
+  }
+  if (beyond == 0) return;
+  print_diagnostic(format("eval: warning: %s: %d mesh%s numbered past the capture's last frame (%s), from %s on; not scored", recon_dir.c_str(),
+                          beyond, beyond == 1 ? "" : "es", frame_file_name(frame_count - 1, "").c_str(), frame_file_name(first, "").c_str()));
 }
 
 // A number for the table, or "-" when undefined.
@@ -136,6 +158,7 @@ void run_eval(EvalArgs& args) {
   const std::optional<Box3d>& volume = capture.rig().volume;
   check_input_folder(args.recon_dir, "a folder of reconstructions");
   warn_if_made_of_another_capture(args.recon_dir, args.capture);
+  warn_of_meshes_beyond_capture(args.recon_dir, capture.frame_count());
   const FrameRange range = parse_frame_range(args.frames, capture.frame_count());
 
   // A frame without a reconstruction is scored as an empty mesh (nothing complete, no accuracy).
@@ -221,7 +244,7 @@ void run_eval(EvalArgs& args) {
             << (missing.empty() ? "" : " (a missing one is scored as an empty mesh)") << "\n";
   std::cout << format("observed         true surface seen by a camera within %.2f-%.2f m (depth tolerance %g mm); covered within %g mm\n",
                       options.min_range_m, options.max_range_m, args.visibility_mm, args.completeness_mm);
-  std::cout << format("\n%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "", "", "accuracy", "(mm)", "complete", "area", "components", "non-man.",
+  std::cout << format("\n%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "", "in volume", "accuracy", "(mm)", "complete", "area", "components", "non-man.",
                       "folded", "doubled", "colour");
   std::cout << format("%6s %9s %9s %9s %9s %6s %12s %9s %7s %9s %7s\n", "frame", "triangles", "mean", "p95", "%", "ratio", "(large)", "edges", "edges",
                       "triangles", "error");
@@ -254,7 +277,7 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("capture", args->capture, "Capture folder with ground_truth/ (as synth writes it)")->required();
   cmd->add_option("recon_dir", args->recon_dir, "Folder of reconstructions, one NNNNNN.ply or .obj per frame")->required();
   cmd->add_option("--frames", args->frames, "Frames A:B (B exclusive; 'A:', ':B' or 'N'); default all");
-  cmd->add_flag("--json", args->json, "Print JSON instead of a table");
+  cmd->add_flag("--json", args->json, "Print JSON instead of a table (completeness as a fraction, 0 to 1; other units in the keys)");
   add_threads_option(cmd, o.num_threads);
   cmd->add_option("--completeness-mm", args->completeness_mm, "A true point is covered when the reconstruction is this close, mm")
       ->check(kFiniteNumber & CLI::Range(0.01, 1000.0))

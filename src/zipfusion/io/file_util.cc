@@ -129,6 +129,9 @@ void check_output_file(const std::filesystem::path& path) {
   const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
   if (fd < 0) {
     const int error = errno;
+    // The folder exists (checked above), so ENOENT here is a file system that makes no files
+    // (/proc answered "No such file or directory", which named the folder as missing).
+    if (error == ENOENT) throw IoError(path.string() + ": cannot write: folder " + folder.string() + " does not take new files");
     if (error != EEXIST) throw IoError(path.string() + ": cannot write: folder " + folder.string() + ": " + std::strerror(error));
     return;  // another check of this process made it: the folder takes files
   }
