@@ -97,7 +97,7 @@ Capture open_capture(const std::string& dir, const std::string& command) {
   return capture;
 }
 
-void open_input(InputArgs& args, const std::string& rig_path, const std::string& register_mode, const std::string& command, Input& in) {
+void open_input(InputArgs& args, const std::string& rig_path, const std::string& command, Input& in) {
   if (!(args.seconds >= 0)) throw InvalidInput("--seconds: must be >= 0 (0 = until Ctrl-C or the end of the frames)");
   if (!args.live) {
     if (args.capture.empty()) throw InvalidInput("capture: required (or --live)");
@@ -118,9 +118,6 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     return;
   }
   if (!args.capture.empty()) throw InvalidInput("--live: takes no CAPTURE (frames come from --devices or --replay)");
-  if (register_mode == "once" || register_mode == "once+background") {
-    throw InvalidInput("--register " + register_mode + ": needs a capture; with --live use auto, background or off");
-  }
   int max_frames = 0;
   if (!args.frames.empty()) {
     size_t used = 0;

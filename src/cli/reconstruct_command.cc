@@ -68,7 +68,7 @@ void run_reconstruct(ReconstructArgs& args) {
   Input in;
   // A signal stops the run at a frame boundary from here on (live input installs it as it opens).
   if (!args.input.live) install_stop_on_signal();
-  open_input(args.input, r.rig, r.register_mode, "reconstruct", in);
+  open_input(args.input, r.rig, "reconstruct", in);
   warn_if_world_not_z_up(in.rig, r, "reconstruct");
 
   // The output folder is checked before the reconstruction is set up (--register once registers
@@ -84,7 +84,7 @@ void run_reconstruct(ReconstructArgs& args) {
   // Errors name --out as given, not the hidden staging folder the files were written in.
   try {
     check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
-    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.live ? &in.source : nullptr);
     if (!reconstruction.pose_updates().empty()) {
       // Refined before the first frame: how far the calibration was off is worth a line.
       const RelativePoseError moved =

@@ -1,6 +1,7 @@
 #include "cli/reconstruction_setup.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "cli/commands.h"
 
@@ -22,10 +23,13 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
   cmd->add_option("--register", args.register_mode,
                   "Pose refinement by GPA-ICP: background (a worker thread, poses swapped in as they come), once (on up to 16 frames spread over the range, before the first), "
                   "once+background (once, then the worker from those poses), off, or auto: off for one camera or where rig.json marks its poses as trusted (\"poses_trusted\": true, "
-                  "written by synth, calibrate and register), else once+background for a capture and background for --live")
+                  "written by synth, calibrate and register), else once+background. With --live, once refines on the first 16 frame sets")
       ->check(CLI::IsMember({"auto", "background", "once", "once+background", "off"}))
       ->capture_default_str();
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements, at least 1")->capture_default_str();
+  cmd->add_option("--register-min-improvement", args.background.min_improvement,
+                  "background: poses are swapped in only where the residual falls by this share (or depth that met nowhere now meets), in [0, 1)")
+      ->capture_default_str();
   cmd->add_option("--register-window", args.background.window_frames, "background: newest frame sets handed over, refined together, in [1, 64]")
       ->capture_default_str();
   cmd->add_option("--lod", o.depth_level,
@@ -122,7 +126,25 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
           {"threads", options.num_threads}};
 }
 
-Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range) : rig_(rig) {
+namespace {
+
+// A pose update of stats.json's pose_updates: the poses swapped in at `frame`, per camera as
+// rig.json writes them (row-major 4×4), so that the poses a mesh was made with can be read back.
+nlohmann::ordered_json pose_update(int frame, int version, const std::vector<Rigid3d>& world_from_depth) {
+  nlohmann::ordered_json poses = nlohmann::json::array();
+  for (const Rigid3d& pose : world_from_depth) {
+    const Eigen::Matrix4d m = pose.matrix();
+    nlohmann::ordered_json rows = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+    poses.push_back(std::move(rows));
+  }
+  return {{"frame", frame}, {"version", version}, {"world_from_depth", std::move(poses)}};
+}
+
+}  // namespace
+
+Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range, FrameSource* live)
+    : rig_(rig) {
   ReconstructOptions& options = args.options;
   options.bilateral = args.filter != "none";
   options.filter.separable = args.filter == "bilateral-separable";
@@ -133,45 +155,77 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();
-  // auto refines an untrusted capture before its first frame: the worker alone took its first
+  // auto refines untrusted poses before the first frame: the worker alone took its first
   // refinement from frame 0 and then one every 30 frames, and on a rig 2° / 5 cm off the first 34
   // meshes were 16.5–20.1 mm from the truth; refined first, 2.5–3.3 mm (docs/design.md).
   // One camera has no other to be registered to.
   register_mode_ = args.register_mode != "auto"                    ? args.register_mode
                    : rig_.poses_trusted || rig_.cameras.size() < 2 ? "off"
-                   : capture != nullptr                            ? "once+background"
-                                                                   : "background";
+                                                                   : "once+background";
   const bool refine_first = register_mode_ == "once" || register_mode_ == "once+background";
+  if (refine_first && capture == nullptr && live == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture or live input");
 
-  // --register once: refine on frames spread over the range, then keep those poses (or start
-  // the worker from them).
+  // --register once: refine on frames spread over the range (a capture), or on the first live
+  // frame sets, then keep those poses (or start the worker from them).
   start_rig_ = rig_;
+  double refined_frame_sets = 0;  // what the starting poses were refined on, at the worker's level
   if (refine_first) {
-    if (capture == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture");
     RegistrationOptions registration = args.once_registration;
     registration.measure_fixed = false;  // the poses are used, not judged
     registration.num_threads = options.num_threads;
     registration.validate();
     std::vector<std::vector<Image<float>>> depth;
-    const int count = std::min(args.once_frames, range.end - range.begin);
-    for (int i = 0; i < count; ++i) {
-      depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), registration));
+    if (capture != nullptr) {
+      const int count = std::min(args.once_frames, range.end - range.begin);
+      for (int i = 0; i < count; ++i) {
+        depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), registration));
+      }
+    } else {
+      depth = take_live_frames(*live, args.once_frames, registration);
     }
-    const RegistrationResult refined = register_rig(rig_, depth, registration);
+    const RegistrationResult refined = depth.empty() ? RegistrationResult{} : register_rig(rig_, depth, registration);
     // Only cameras joined to the held one move; where none did (no depth in the volume, no
-    // overlap), the poses are as given and no update is recorded.
+    // overlap, no live frame), the poses are as given and no update is recorded.
     int joined = 0;
     for (size_t c = 0; c < refined.joined_to_gauge.size(); ++c) joined += refined.joined_to_gauge[c] && static_cast<int>(c) != refined.gauge;
     if (joined > 0) {
       for (size_t c = 0; c < start_rig_.cameras.size(); ++c) start_rig_.cameras[c].world_from_depth = refined.world_from_depth[c];
-      pose_updates_.push_back({{"frame", range.begin}, {"version", 1}});
+      pose_updates_.push_back(pose_update(range.begin, 1, refined.world_from_depth));
       first_version_ = 1;
+      // The worker (levels 3→2) then moves these poses only on clear evidence.
+      refined_frame_sets = static_cast<double>(depth.size()) * std::pow(4.0, args.background.registration.finest_level - registration.finest_level);
     }
   }
   if (register_mode_ == "background" || register_mode_ == "once+background") {
-    background_ = std::make_unique<BackgroundRegistration>(start_rig_, args.background);
+    BackgroundRegistrationOptions background = args.background;
+    background.start_frame_sets = refined_frame_sets;
+    background_ = std::make_unique<BackgroundRegistration>(start_rig_, background);
   }
   reconstructor_ = std::make_unique<FrameReconstructor>(start_rig_, options);
+}
+
+std::vector<std::vector<Image<float>>> Reconstruction::take_live_frames(FrameSource& live, int count, const RegistrationOptions& registration) {
+  // The sets are taken as they come (about half a second of a 30 Hz rig): live frames are not
+  // known ahead, and a set skipped would never be reconstructed. They are kept and handed to the
+  // pipeline first, so that --frames N still makes N meshes, the first of them at refined poses.
+  taken_.resize(count);
+  std::vector<std::vector<Image<float>>> depth;
+  int taken = 0;
+  for (; taken < count; ++taken) {
+    double decode_ms = 0;
+    if (!live(taken_[taken], decode_ms)) break;  // the stream ended (or Ctrl-C): refine on what came
+    depth.push_back(registration_depth(rig_, taken_[taken], registration));
+  }
+  taken_.resize(taken);
+  if (taken > 0) {
+    live = [this, next = size_t{0}, source = std::move(live)](FrameSet& set, double& decode_ms) mutable {
+      if (next == taken_.size()) return source(set, decode_ms);
+      std::swap(set, taken_[next++]);  // the pipeline's recycled images go to taken_, freed with it
+      decode_ms = 0;
+      return true;
+    };
+  }
+  return depth;
 }
 
 PipelineOptions Reconstruction::pipeline_options() {
@@ -184,7 +238,9 @@ PipelineOptions Reconstruction::pipeline_options() {
       if (poses->version != pose_version_) {
         target.set_poses(poses->world_from_depth);
         pose_version_ = poses->version;
-        pose_updates_.push_back({{"frame", set.index}, {"version", first_version_ + pose_version_}, {"refined_on_frame", poses->frame}});
+        nlohmann::ordered_json update = pose_update(set.index, first_version_ + pose_version_, poses->world_from_depth);
+        update["refined_on_frame"] = poses->frame;
+        pose_updates_.push_back(std::move(update));
       }
       background_->offer(set);
     };

@@ -42,14 +42,16 @@ void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, cons
 //! The options as JSON (stats.json, the stream's description).
 nlohmann::ordered_json options_json(const ReconstructOptions& options);
 
-//! The reconstruction of frames seen by `rig`. With --register once the poses are refined on
-//! frames of `capture` (required then) before the first frame; with background, by a worker
-//! thread as the frames go; once+background does both. auto is off for one camera or where the rig
-//! marks its poses as trusted, else once+background with a capture and background without (live input).
+//! The reconstruction of frames seen by `rig`. With --register once the poses are refined before
+//! the first frame: on up to 16 frames spread over `range` of `capture`, or on the first 16 frame
+//! sets of `live` (live input, when there is no capture), which are then handed to the pipeline
+//! first. With background, by a worker thread as the frames go; once+background does both. auto
+//! is off for one camera or where the rig marks its poses as trusted, else once+background.
 class Reconstruction {
  public:
-  //! Throws InvalidInput for bad options.
-  Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range);
+  //! Throws InvalidInput for bad options. `live`, with a live source, may be wrapped so that the
+  //! frame sets taken for the refinement come out of it first; it must outlive this object's use.
+  Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range, FrameSource* live = nullptr);
   // The background registration's hook refers to this object.
   Reconstruction(const Reconstruction&) = delete;
   Reconstruction& operator=(const Reconstruction&) = delete;
@@ -59,7 +61,7 @@ class Reconstruction {
   const std::string& register_mode() const { return register_mode_; }
   //! The pipeline's options, with the background registration's hook when it runs.
   PipelineOptions pipeline_options();
-  //! Every pose change so far: [{frame, version, refined_on_frame?}].
+  //! Every pose change so far: [{frame, version, world_from_depth (per camera, 4×4), refined_on_frame?}].
   const nlohmann::ordered_json& pose_updates() const { return pose_updates_; }
 
  private:
@@ -68,6 +70,10 @@ class Reconstruction {
   std::string register_mode_;
   std::unique_ptr<FrameReconstructor> reconstructor_;
   std::unique_ptr<BackgroundRegistration> background_;
+  // Up to `count` frame sets from `live` as registration depth; `live` then hands them out first.
+  std::vector<std::vector<Image<float>>> take_live_frames(FrameSource& live, int count, const RegistrationOptions& registration);
+
+  std::vector<FrameSet> taken_;  // live frame sets the refinement used, until the pipeline takes them
   nlohmann::ordered_json pose_updates_ = nlohmann::json::array();
   int pose_version_ = 0;   // the worker's version swapped in last
   int first_version_ = 0;  // 1 where the poses were refined before the first frame

@@ -138,9 +138,9 @@ void run_serve(ServeArgs& args) {
   args.input.devices.replay_loop = args.loop;
   ReconstructionArgs& r = args.reconstruction;
   Input in;
-  open_input(args.input, r.rig, r.register_mode, "serve", in);
+  open_input(args.input, r.rig, "serve", in);
   warn_if_world_not_z_up(in.rig, r, "serve");
-  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range);
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.live ? &in.source : nullptr);
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).
   const QuantizationBox volume_box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);

@@ -9,11 +9,14 @@ namespace zipfusion {
 void BackgroundRegistrationOptions::validate() const {
   if (every_frames < 1) throw InvalidInput("--register-every: must be at least 1 frame");
   if (window_frames < 1 || window_frames > 64) throw InvalidInput("--register-window: must be in [1, 64] frames");
+  if (!(min_improvement >= 0 && min_improvement < 1)) throw InvalidInput("--register-min-improvement: must be in [0, 1)");
+  if (!(start_frame_sets >= 0)) throw InvalidInput("BackgroundRegistrationOptions::start_frame_sets: must be >= 0");
   registration.validate();
 }
 
 BackgroundRegistration::BackgroundRegistration(const Rig& rig, const BackgroundRegistrationOptions& options) : rig_(rig), options_(options) {
   options_.validate();
+  published_frame_sets_ = options_.start_frame_sets;
   window_.reserve(options_.window_frames);
   auto initial = std::make_shared<PublishedPoses>();
   initial->world_from_depth = world_from_depth_poses(rig);
@@ -84,20 +87,27 @@ void BackgroundRegistration::run() {
       RegistrationOptions registration = options_.registration;
       registration.measure_fixed = false;  // what is published is decided by the residuals below
       RegistrationResult result = register_rig(rig, depth, registration);
-      // Published only when the surfaces agree at least as well as before where both poses gave
+      // Published where the surfaces agree at least as well as before where both poses gave
       // correspondences, and every camera that had some still has: a window where the cameras
-      // barely overlap must not move a good calibration, and poses whose depth did not meet at
-      // all (none before) are worth replacing by ones where it does.
+      // barely overlap must not move a good calibration. A window of fewer frame sets than the
+      // poses' own refinement must lower the residual clearly (min_improvement): at poses
+      // already right the residual is the sensor's noise, and a refinement that barely lowers it
+      // has slid the cameras along what its few frames leave loose. Poses whose depth met
+      // nowhere (a camera without correspondences before) are replaced by any that make it meet.
       double before = 0, after = 0;
-      bool lost = false, matched = false;
+      bool lost = false, matched = false, gained = false;
       for (size_t c = 0; c < result.rmse_after_m.size(); ++c) {
         lost = lost || (result.correspondences_before[c] > 0 && result.correspondences_after[c] == 0);
+        gained = gained || (result.correspondences_before[c] == 0 && result.correspondences_after[c] > 0);
         matched = matched || result.correspondences_after[c] > 0;
         if (result.correspondences_before[c] == 0 || result.correspondences_after[c] == 0) continue;
         before += result.rmse_before_m[c];
         after += result.rmse_after_m[c];
       }
-      if (after <= before && !lost && matched) {
+      const bool as_much_evidence = static_cast<double>(window.size()) >= published_frame_sets_;
+      const bool improved = after <= (as_much_evidence ? 1.0 : 1 - options_.min_improvement) * before;
+      if ((improved || gained) && !lost && matched) {
+        published_frame_sets_ = static_cast<double>(window.size());
         next = std::make_shared<PublishedPoses>();
         next->world_from_depth = result.world_from_depth;
         next->result = std::move(result);
