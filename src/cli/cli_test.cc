@@ -674,6 +674,9 @@ TEST_F(Cli, MissingFrameFilesAreAWarning) {
   // Only the frames asked for count.
   const CommandResult second = run("reconstruct " + capture.string() + " --threads 1 --frames 1 --out " + (dir_ / "out1").string());
   EXPECT_NE(second.err.find("1 frame files missing (cam0 depth 1 colour 0)"), std::string::npos) << second.err;
+  // --frames N is frame N alone, which a newcomer took for the first N: said in a line.
+  EXPECT_NE(second.out.find("wrote 1 mesh (zipper)"), std::string::npos) << second.out;
+  EXPECT_NE(second.out.find("reconstruct: --frames 1 is frame 1 alone; --frames 0:1 gives the first 1\n"), std::string::npos) << second.out;
 }
 
 // Depth in tenths of a millimetre read as millimetres (a unit typed wrong) puts every point

@@ -202,6 +202,11 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   }
   std::cout << "wrote " << frames.size() << (frames.size() == 1 ? " mesh (" : " meshes (") << r.mode << ") to " << out_dir.string()
             << format(", median reconstruction %.1f ms per frame set; timings in ", median_of(totals)) << (out_dir / "stats.json").string() << "\n";
+  // --frames N is frame N alone, as in eval and register; a review expected the first N frames.
+  const std::string& frames_given = args.input.frames;
+  if (!in.live && !frames_given.empty() && frames_given.find(':') == std::string::npos && range.begin > 0) {
+    std::cout << format("reconstruct: --frames %s is frame %d alone; --frames 0:%d gives the first %d\n", frames_given.c_str(), range.begin, range.begin, range.begin);
+  }
   // (Not where --min-component dropped pieces: then that is why.)
   if (!frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) {
         return f["triangles"] == 0 && f.value("small_component_triangles", 0) == 0;
