@@ -162,7 +162,9 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   register_mode_ = args.register_mode != "auto"                    ? args.register_mode
                    : rig_.poses_trusted || rig_.cameras.size() < 2 ? "off"
                                                                    : "once+background";
+  // The mode's two parts (CLI11 checked the name against the list).
   const bool refine_first = register_mode_ == "once" || register_mode_ == "once+background";
+  const bool in_background = register_mode_ == "background" || register_mode_ == "once+background";
   if (refine_first && capture == nullptr && live == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture or live input");
 
   // --register once: refine on frames spread over the range (a capture), or on the first live
@@ -196,7 +198,7 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
       refined_frame_sets = static_cast<double>(depth.size()) * std::pow(4.0, args.background.registration.finest_level - registration.finest_level);
     }
   }
-  if (register_mode_ == "background" || register_mode_ == "once+background") {
+  if (in_background) {
     BackgroundRegistrationOptions background = args.background;
     background.start_frame_sets = refined_frame_sets;
     background_ = std::make_unique<BackgroundRegistration>(start_rig_, background);
