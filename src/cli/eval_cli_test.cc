@@ -99,6 +99,7 @@ TEST_F(EvalCli, MeshesOfAnotherCaptureAreWarnedOf) {
   // Meshes numbered past the capture's frames cannot be scored; said so, and the score is the same.
   fs::copy_file(meshes / "000000.ply", meshes / "000003.ply");
   fs::copy_file(meshes / "000000.ply", meshes / "000001.ply");
+  write_obj(meshes / "000003.obj", TriangleMesh{});  // the same frame again: one mesh
   const CommandResult beyond = run("eval " + first.string() + " " + meshes.string());
   ASSERT_EQ(beyond.exit_code, 0) << beyond.err;
   EXPECT_EQ(beyond.err, "eval: warning: " + meshes.string() + ": 2 meshes numbered past the capture's last frame (000000), from 000001 on; not scored\n");

@@ -7,6 +7,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -60,7 +61,7 @@ void warn_if_made_of_another_capture(const fs::path& recon_dir, const fs::path& 
 // A warning line where the folder holds meshes numbered past the capture's last frame: they
 // cannot be scored, and were left out without a word (a review: 10 meshes, 6 frames, "6 of 6").
 void warn_of_meshes_beyond_capture(const fs::path& recon_dir, int frame_count) {
-  int beyond = 0, first = 0;
+  std::set<int> beyond;  // frame numbers (a frame's .ply and .obj are one)
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(recon_dir, ec)) {
     const fs::path name = entry.path().filename();
@@ -69,13 +70,12 @@ void warn_of_meshes_beyond_capture(const fs::path& recon_dir, int frame_count) {
     // NNNNNN, wider past frame 999999 (as frame_file_name writes them)
     if (stem.size() < 6 || stem.size() > 9 || stem.find_first_not_of("0123456789") != std::string::npos) continue;
     const int frame = std::stoi(stem);
-    if (frame < frame_count) continue;
-    first = beyond == 0 ? frame : std::min(first, frame);
-    ++beyond;
+    if (frame >= frame_count) beyond.insert(frame);
   }
-  if (beyond == 0) return;
+  if (beyond.empty()) return;
+  const int count = static_cast<int>(beyond.size());
   print_diagnostic(format("eval: warning: %s: %d mesh%s numbered past the capture's last frame (%s), from %s on; not scored", recon_dir.c_str(),
-                          beyond, beyond == 1 ? "" : "es", frame_file_name(frame_count - 1, "").c_str(), frame_file_name(first, "").c_str()));
+                          count, count == 1 ? "" : "es", frame_file_name(frame_count - 1, "").c_str(), frame_file_name(*beyond.begin(), "").c_str()));
 }
 
 // A number for the table, or "-" when undefined.

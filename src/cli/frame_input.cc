@@ -152,6 +152,12 @@ void open_input(InputArgs& args, const std::string& rig_path, const std::string&
     in.skew_ms[set.index] = set.skew_s * 1000;
   }};
   source_options.depth_undistortion = depth_undistortion_maps(in.rig);  // a calibration's depth distortion, as a capture's reader applies it
+  in.take_before_start = [&rig = *in.live, undistortion = source_options.depth_undistortion, live = std::make_shared<LiveFrameSet>(), command,
+                          said = false](FrameSet& set) mutable {
+    if (!said) std::cout << command << ": refining the poses on the first live frame sets before the first mesh (--register once)" << std::endl;
+    said = true;
+    return !stop_requested() && read_live_frame_set(rig, *live, set, undistortion);
+  };
   in.source = live_frame_source(*in.live, std::move(source_options));
 }
 

@@ -3,6 +3,7 @@
 // (--live: Kinect v1 devices or fakenect dumps replayed), with the rig for them.
 
 #include <CLI/CLI.hpp>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -35,6 +36,10 @@ struct Input {
   Rig rig;
   FrameRange range;       // capture: the frames; live: [0, --frames) or [0, 0) without a limit
   FrameSource source;     // capture: every frame as fast as it decodes; live: as the cameras deliver
+  //! Live: a frame set taken before the pipeline starts (the poses' refinement on the first live
+  //! sets), not counted by --frames or --seconds, nor numbered; the first call says so on stdout.
+  //! Empty for a capture.
+  std::function<bool(FrameSet&)> take_before_start;
   std::mutex skew_mutex;  // live: per frame set skew, written by the source thread
   std::vector<double> skew_ms;
   std::mutex unreadable_mutex;  // capture: written by the source thread

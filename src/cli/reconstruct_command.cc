@@ -84,14 +84,8 @@ void run_reconstruct(ReconstructArgs& args) {
   // Errors name --out as given, not the hidden staging folder the files were written in.
   try {
     check_no_earlier_meshes(out_dir, "." + args.format, in.live ? FrameRange{} : in.range);
-    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.live ? &in.source : nullptr);
-    if (!reconstruction.pose_updates().empty()) {
-      // Refined before the first frame: how far the calibration was off is worth a line.
-      const RelativePoseError moved =
-          worst_relative_pose_error(world_from_depth_poses(reconstruction.rig()), world_from_depth_poses(in.rig));
-      std::cout << format("reconstruct: poses refined before the first frame; cameras moved by up to %.1f mm and %.2f deg relative to %s\n",
-                          moved.translation_m * 1000, moved.rotation_deg, in.rig.cameras[0].name.c_str());
-    }
+    Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.take_before_start);
+    reconstruction.say_how_far_poses_moved("reconstruct");
     if (!in.live && stop_requested()) throw Interrupted("reconstruct: stopped by a signal before the first frame set; nothing written", stop_signal());
     write_reconstruction(args, in, reconstruction, out);
   } catch (const IoError& e) {
@@ -177,6 +171,10 @@ void write_reconstruction(ReconstructArgs& args, Input& in, Reconstruction& reco
   stats["max_depth_jump_m_per_camera"] = applied_jumps;
   stats["register"] = reconstruction.register_mode();
   stats["pose_updates"] = reconstruction.pose_updates();
+  stats["refinement_before_first_frame_s"] = reconstruction.refinement_s();
+  stats["register_every"] = r.background.every_frames;
+  stats["register_window"] = r.background.window_frames;
+  stats["register_min_improvement"] = r.background.min_improvement;
   stats["frames"] = frames;
   stats["median_total_ms"] = median_of(totals);
   stats["wall_ms"] = pipeline.wall_ms;

@@ -1,9 +1,11 @@
 #include "cli/reconstruction_setup.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "cli/commands.h"
+#include "cli/live_devices.h"
 
 
 namespace zipfusion::cli {
@@ -28,7 +30,8 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args) {
       ->capture_default_str();
   cmd->add_option("--register-every", args.background.every_frames, "background: frames between two refinements, at least 1")->capture_default_str();
   cmd->add_option("--register-min-improvement", args.background.min_improvement,
-                  "background: poses are swapped in only where the residual falls by this share (or depth that met nowhere now meets), in [0, 1)")
+                  "background: a window of fewer frame sets than the poses have been refined on (after once: every window) moves them only where "
+                  "the residual falls by this share, in [0, 1)")
       ->capture_default_str();
   cmd->add_option("--register-window", args.background.window_frames, "background: newest frame sets handed over, refined together, in [1, 64]")
       ->capture_default_str();
@@ -128,6 +131,8 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options) {
 
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
 // A pose update of stats.json's pose_updates: the poses swapped in at `frame`, per camera as
 // rig.json writes them (row-major 4×4), so that the poses a mesh was made with can be read back.
 nlohmann::ordered_json pose_update(int frame, int version, const std::vector<Rigid3d>& world_from_depth) {
@@ -143,7 +148,8 @@ nlohmann::ordered_json pose_update(int frame, int version, const std::vector<Rig
 
 }  // namespace
 
-Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range, FrameSource* live)
+Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range,
+                               const std::function<bool(FrameSet&)>& take_live)
     : rig_(rig) {
   ReconstructOptions& options = args.options;
   options.bilateral = args.filter != "none";
@@ -165,16 +171,18 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   // The mode's two parts (CLI11 checked the name against the list).
   const bool refine_first = register_mode_ == "once" || register_mode_ == "once+background";
   const bool in_background = register_mode_ == "background" || register_mode_ == "once+background";
-  if (refine_first && capture == nullptr && live == nullptr) throw InvalidInput("--register " + register_mode_ + ": needs a capture or live input");
+  if (refine_first && capture == nullptr && !take_live) throw InvalidInput("--register " + register_mode_ + ": needs a capture or live input");
 
   // --register once: refine on frames spread over the range (a capture), or on the first live
   // frame sets, then keep those poses (or start the worker from them).
   start_rig_ = rig_;
   double refined_frame_sets = 0;  // what the starting poses were refined on, at the worker's level
-  if (refine_first) {
+  if (refine_first && rig_.cameras.size() >= 2) {
+    const Clock::time_point start = Clock::now();
     RegistrationOptions registration = args.once_registration;
     registration.measure_fixed = false;  // the poses are used, not judged
     registration.num_threads = options.num_threads;
+    registration.cancel = &stop_requested();  // Ctrl-C does not wait for seconds of refining
     registration.validate();
     std::vector<std::vector<Image<float>>> depth;
     if (capture != nullptr) {
@@ -183,8 +191,12 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
         depth.push_back(registration_depth(rig_, capture->load_frame(range.begin + i * (range.end - range.begin) / count), registration));
       }
     } else {
-      depth = take_live_frames(*live, args.once_frames, registration);
+      // Taken as they come (about half a second of a 30 Hz rig), and not reconstructed: by the
+      // time the poses are refined they are seconds old, and a live pipeline drops late sets.
+      FrameSet set;
+      for (int i = 0; i < args.once_frames && take_live(set); ++i) depth.push_back(registration_depth(rig_, set, registration));
     }
+    if (stop_requested()) depth.clear();  // Ctrl-C while the frames were read: no seconds of refining first
     const RegistrationResult refined = depth.empty() ? RegistrationResult{} : register_rig(rig_, depth, registration);
     // Only cameras joined to the held one move; where none did (no depth in the volume, no
     // overlap, no live frame), the poses are as given and no update is recorded.
@@ -197,6 +209,7 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
       // The worker (levels 3→2) then moves these poses only on clear evidence.
       refined_frame_sets = static_cast<double>(depth.size()) * std::pow(4.0, args.background.registration.finest_level - registration.finest_level);
     }
+    refinement_s_ = std::chrono::duration<double>(Clock::now() - start).count();
   }
   if (in_background) {
     BackgroundRegistrationOptions background = args.background;
@@ -206,28 +219,12 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   reconstructor_ = std::make_unique<FrameReconstructor>(start_rig_, options);
 }
 
-std::vector<std::vector<Image<float>>> Reconstruction::take_live_frames(FrameSource& live, int count, const RegistrationOptions& registration) {
-  // The sets are taken as they come (about half a second of a 30 Hz rig): live frames are not
-  // known ahead, and a set skipped would never be reconstructed. They are kept and handed to the
-  // pipeline first, so that --frames N still makes N meshes, the first of them at refined poses.
-  taken_.resize(count);
-  std::vector<std::vector<Image<float>>> depth;
-  int taken = 0;
-  for (; taken < count; ++taken) {
-    double decode_ms = 0;
-    if (!live(taken_[taken], decode_ms)) break;  // the stream ended (or Ctrl-C): refine on what came
-    depth.push_back(registration_depth(rig_, taken_[taken], registration));
-  }
-  taken_.resize(taken);
-  if (taken > 0) {
-    live = [this, next = size_t{0}, source = std::move(live)](FrameSet& set, double& decode_ms) mutable {
-      if (next == taken_.size()) return source(set, decode_ms);
-      std::swap(set, taken_[next++]);  // the pipeline's recycled images go to taken_, freed with it
-      decode_ms = 0;
-      return true;
-    };
-  }
-  return depth;
+void Reconstruction::say_how_far_poses_moved(const std::string& command) const {
+  if (pose_updates_.empty() || first_version_ == 0) return;
+  // Refined before the first frame: how far the calibration was off is worth a line.
+  const RelativePoseError moved = worst_relative_pose_error(world_from_depth_poses(start_rig_), world_from_depth_poses(rig_));
+  std::cout << format("%s: poses refined before the first frame in %.1f s; cameras moved by up to %.1f mm and %.2f deg relative to %s\n",
+                      command.c_str(), refinement_s_, moved.translation_m * 1000, moved.rotation_deg, rig_.cameras[0].name.c_str());
 }
 
 PipelineOptions Reconstruction::pipeline_options() {

@@ -44,14 +44,15 @@ nlohmann::ordered_json options_json(const ReconstructOptions& options);
 
 //! The reconstruction of frames seen by `rig`. With --register once the poses are refined before
 //! the first frame: on up to 16 frames spread over `range` of `capture`, or on the first 16 frame
-//! sets of `live` (live input, when there is no capture), which are then handed to the pipeline
-//! first. With background, by a worker thread as the frames go; once+background does both. auto
-//! is off for one camera or where the rig marks its poses as trusted, else once+background.
+//! sets `take_live` gives (live input, when there is no capture; they are not reconstructed).
+//! With background, by a worker thread as the frames go; once+background does both. auto is off
+//! for one camera or where the rig marks its poses as trusted, else once+background. A rig of one
+//! camera is never refined: there is nothing to register it to.
 class Reconstruction {
  public:
-  //! Throws InvalidInput for bad options. `live`, with a live source, may be wrapped so that the
-  //! frame sets taken for the refinement come out of it first; it must outlive this object's use.
-  Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range, FrameSource* live = nullptr);
+  //! Throws InvalidInput for bad options.
+  Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range,
+                 const std::function<bool(FrameSet&)>& take_live = {});
   // The background registration's hook refers to this object.
   Reconstruction(const Reconstruction&) = delete;
   Reconstruction& operator=(const Reconstruction&) = delete;
@@ -59,6 +60,11 @@ class Reconstruction {
   FrameReconstructor& reconstructor() { return *reconstructor_; }
   const Rig& rig() const { return start_rig_; }  // the poses reconstruction starts from (refined, with once)
   const std::string& register_mode() const { return register_mode_; }
+  //! Seconds spent refining before the first frame (taking live frame sets included), 0 without.
+  double refinement_s() const { return refinement_s_; }
+  //! Where the poses were refined before the first frame, a line on stdout: how long it took and
+  //! how far the cameras moved (the worst, relative to the first camera).
+  void say_how_far_poses_moved(const std::string& command) const;
   //! The pipeline's options, with the background registration's hook when it runs.
   PipelineOptions pipeline_options();
   //! Every pose change so far: [{frame, version, world_from_depth (per camera, 4×4), refined_on_frame?}].
@@ -70,13 +76,10 @@ class Reconstruction {
   std::string register_mode_;
   std::unique_ptr<FrameReconstructor> reconstructor_;
   std::unique_ptr<BackgroundRegistration> background_;
-  // Up to `count` frame sets from `live` as registration depth; `live` then hands them out first.
-  std::vector<std::vector<Image<float>>> take_live_frames(FrameSource& live, int count, const RegistrationOptions& registration);
-
-  std::vector<FrameSet> taken_;  // live frame sets the refinement used, until the pipeline takes them
   nlohmann::ordered_json pose_updates_ = nlohmann::json::array();
   int pose_version_ = 0;   // the worker's version swapped in last
   int first_version_ = 0;  // 1 where the poses were refined before the first frame
+  double refinement_s_ = 0;
 };
 
 }  // namespace zipfusion::cli

@@ -71,7 +71,7 @@ TEST_F(RegisterCli, AnUntrustedCaptureIsRefinedBeforeItsFirstFrameByDefault) {
     const CommandResult made = run("reconstruct " + capture + " --frames 0:4 --out " + out + extra);
     EXPECT_EQ(made.exit_code, 0) << made.err;
     // Says so where the poses were refined first, and how far they moved (2° / 5 cm here).
-    const std::regex moved("reconstruct: poses refined before the first frame; cameras moved by up to ([0-9.]+) mm and ([0-9.]+) deg relative to cam0\n");
+    const std::regex moved("reconstruct: poses refined before the first frame in [0-9.]+ s; cameras moved by up to ([0-9.]+) mm and ([0-9.]+) deg relative to cam0\n");
     std::smatch match;
     const bool refined_first = extra.empty() || extra == " --register once";
     EXPECT_EQ(std::regex_search(made.out, match, moved), refined_first) << made.out;

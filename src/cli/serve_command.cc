@@ -140,7 +140,8 @@ void run_serve(ServeArgs& args) {
   Input in;
   open_input(args.input, r.rig, "serve", in);
   warn_if_world_not_z_up(in.rig, r, "serve");
-  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.live ? &in.source : nullptr);
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.take_before_start);
+  reconstruction.say_how_far_poses_moved("serve");
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).
   const QuantizationBox volume_box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);

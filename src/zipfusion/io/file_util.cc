@@ -324,7 +324,10 @@ StagedFolder::StagedFolder(const std::filesystem::path& asked_for, std::string_v
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec)) throw InvalidInput(dir_.string() + ": is a file, not a folder (choose another " + std::string(option) + ")");
   fs::create_directories(dir_, made);
   if (!fs::is_directory(dir_, ec)) {
-    throw IoError(dir_.string() + ": cannot create output folder" + (made ? " (" + made.message() + ")" : std::string()));
+    // ENOENT under a folder that exists is a file system that makes no folders (/proc).
+    const bool takes_none = made == std::errc::no_such_file_or_directory && fs::is_directory(existing_, ec);
+    throw IoError(dir_.string() + ": cannot create output folder" +
+                  (takes_none ? " (" + existing_.string() + " does not take new folders)" : made ? " (" + made.message() + ")" : std::string()));
   }
   lock_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (lock_fd_ < 0) throw IoError(dir_.string() + ": cannot open the output folder (" + std::strerror(errno) + ")");

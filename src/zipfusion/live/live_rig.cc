@@ -162,6 +162,35 @@ Rig make_live_rig(const LiveRig& live, const Rig* calibration, const std::string
   return rig;
 }
 
+bool read_live_frame_set(LiveRig& rig, LiveFrameSet& live, FrameSet& set, const std::vector<std::vector<int>>& depth_undistortion) {
+  if (!rig.next(live)) return false;
+  set.capture_time_ms = 0;
+  set.cameras.resize(live.cameras.size());
+  for (size_t c = 0; c < live.cameras.size(); ++c) {
+    // The set's images from an earlier frame set go to the live frame, and with it back to the
+    // camera; an undistorted image is written into the set's own buffer.
+    CameraFrame& camera = set.cameras[c];
+    std::optional<LiveFrame>& frame = live.cameras[c];
+    camera.unreadable.clear();
+    camera.has_depth = frame.has_value();
+    camera.has_color = frame && frame->has_color;
+    const bool undistorted = c < depth_undistortion.size() && !depth_undistortion[c].empty();
+    if (!frame) {
+      camera.depth.resize_for_overwrite(0, 0);
+    } else if (undistorted) {
+      undistort_depth_into(frame->depth, depth_undistortion[c], static_cast<int>(c), camera.depth);
+    } else {
+      std::swap(camera.depth, frame->depth);
+    }
+    if (camera.has_color) {
+      std::swap(camera.color, frame->color);
+    } else {
+      camera.color.resize_for_overwrite(0, 0);
+    }
+  }
+  return true;
+}
+
 LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
   struct State {
     bool started = false;
@@ -177,7 +206,7 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
       return false;
     }
     LiveFrameSet& live = state->live;
-    if (!rig.next(live)) return false;
+    if (!read_live_frame_set(rig, live, set, options.depth_undistortion)) return false;
     if (!state->started) {
       state->started = true;
       state->first_time_s = live.time_s;
@@ -188,30 +217,6 @@ LiveFrameSource live_frame_source(LiveRig& rig, LiveSourceOptions options) {
     }
     if (options.observe) options.observe(live);
     set.index = state->delivered++;
-    set.capture_time_ms = 0;
-    set.cameras.resize(live.cameras.size());
-    for (size_t c = 0; c < live.cameras.size(); ++c) {
-      // The set's images from an earlier frame set go to the live frame, and with it back to the
-      // camera; an undistorted image is written into the set's own buffer.
-      CameraFrame& camera = set.cameras[c];
-      std::optional<LiveFrame>& frame = live.cameras[c];
-      camera.unreadable.clear();
-      camera.has_depth = frame.has_value();
-      camera.has_color = frame && frame->has_color;
-      const bool undistorted = c < options.depth_undistortion.size() && !options.depth_undistortion[c].empty();
-      if (!frame) {
-        camera.depth.resize_for_overwrite(0, 0);
-      } else if (undistorted) {
-        undistort_depth_into(frame->depth, options.depth_undistortion[c], static_cast<int>(c), camera.depth);
-      } else {
-        std::swap(camera.depth, frame->depth);
-      }
-      if (camera.has_color) {
-        std::swap(camera.color, frame->color);
-      } else {
-        camera.color.resize_for_overwrite(0, 0);
-      }
-    }
     decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     return true;
   };

@@ -114,6 +114,12 @@ struct LiveSourceOptions {
   std::vector<std::vector<int>> depth_undistortion;
 };
 
+//! One frame set of `rig` into `set` as live_frame_source delivers it (depth undistorted with
+//! `depth_undistortion`, the images swapped), but without its limits, numbering or observer: for
+//! frame sets taken before the pipeline starts (`--register once` on live input). `live` is the
+//! caller's, kept between calls. False once every stream has ended (rig.next).
+bool read_live_frame_set(LiveRig& rig, LiveFrameSet& live, FrameSet& set, const std::vector<std::vector<int>>& depth_undistortion);
+
 //! The type of pipeline.h's FrameSource, spelled out because the live layer sits below the
 //! pipeline (it is the same std::function type: run_pipeline takes it as it is).
 using LiveFrameSource = std::function<bool(FrameSet& set, double& decode_ms)>;

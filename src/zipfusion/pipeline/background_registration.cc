@@ -90,10 +90,11 @@ void BackgroundRegistration::run() {
       // Published where the surfaces agree at least as well as before where both poses gave
       // correspondences, and every camera that had some still has: a window where the cameras
       // barely overlap must not move a good calibration. A window of fewer frame sets than the
-      // poses' own refinement must lower the residual clearly (min_improvement): at poses
-      // already right the residual is the sensor's noise, and a refinement that barely lowers it
-      // has slid the cameras along what its few frames leave loose. Poses whose depth met
-      // nowhere (a camera without correspondences before) are replaced by any that make it meet.
+      // poses have been refined on (the most of any refinement so far) must lower the residual
+      // clearly (min_improvement): at poses already right the residual is the sensor's noise,
+      // and a refinement that barely lowers it has slid the cameras along what its few frames
+      // leave loose. A camera whose depth met nowhere before and now meets counts as a gain, where
+      // the others' residual did not rise.
       double before = 0, after = 0;
       bool lost = false, matched = false, gained = false;
       for (size_t c = 0; c < result.rmse_after_m.size(); ++c) {
@@ -105,9 +106,11 @@ void BackgroundRegistration::run() {
         after += result.rmse_after_m[c];
       }
       const bool as_much_evidence = static_cast<double>(window.size()) >= published_frame_sets_;
-      const bool improved = after <= (as_much_evidence ? 1.0 : 1 - options_.min_improvement) * before;
-      if ((improved || gained) && !lost && matched) {
-        published_frame_sets_ = static_cast<double>(window.size());
+      const bool compared = before > 0;  // some camera had correspondences at both poses
+      const bool improved = compared && after <= (as_much_evidence ? 1.0 : 1 - options_.min_improvement) * before;
+      if ((improved || (gained && (!compared || after <= before))) && !lost && matched) {
+        // The bar is not lowered: a bump followed by a still rig must not go back to chasing noise.
+        published_frame_sets_ = std::max(published_frame_sets_, static_cast<double>(window.size()));
         next = std::make_shared<PublishedPoses>();
         next->world_from_depth = result.world_from_depth;
         next->result = std::move(result);

@@ -28,10 +28,10 @@ struct BackgroundRegistrationOptions {
   int every_frames = 30;    // frames between two hand-overs (one second at 30 fps)
   int window_frames = 4;    // frame sets handed over, refined together (the subject has moved between them)
   RegistrationOptions registration{.finest_level = 2, .num_threads = 1};  // 3→2 levels: ~40 ms per frame set, one core
-  // A refinement on fewer frame sets than the poses it starts from were refined on (`start_frame_sets`,
-  // then each published window's) is published only where it lowers the residual by at least this
-  // share: at poses `--register once` had refined, a window of one frame set slid cameras 10–40 mm
-  // while its residual moved by under 1 % (docs/design.md). In [0, 1).
+  // A refinement on fewer frame sets than the poses have been refined on (the most of
+  // `start_frame_sets` and every published window) is published only where it lowers the residual
+  // by at least this share: at poses `--register once` had refined, a window of one frame set slid
+  // cameras 10–40 mm while its residual moved by under 1 % (docs/design.md). In [0, 1).
   double min_improvement = 0.05;
   // The frame sets the starting poses were refined on, counted at the worker's finest level (four
   // per set for each level finer); 0 for poses as given.

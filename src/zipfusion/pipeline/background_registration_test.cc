@@ -67,7 +67,8 @@ TEST(BackgroundRegistration, WellRefinedPosesMoveOnlyOnClearEvidence) {
   EXPECT_EQ(refine(truth, 64)->version, 0);
   // The perturbed rig (up to 0.5° / 26 mm off), counted as well refined: its error is clear.
   const auto moved = refine(capture.rig(), 64);
-  EXPECT_GE(moved->version, 1);
+  // Its first window's refinement; the later windows' smaller gains do not lower the bar again.
+  EXPECT_EQ(moved->version, 1);
   const RelativePoseError before = worst_relative_pose_error(world_from_depth_poses(capture.rig()), world_from_depth_poses(truth));
   const RelativePoseError after = worst_relative_pose_error(moved->world_from_depth, world_from_depth_poses(truth));
   std::printf("samba-4cam from its rig.json, counted as refined: %.2f mm / %.3f deg before, %.2f mm / %.3f deg after\n", before.translation_m * 1000,

@@ -446,6 +446,15 @@ RegistrationResult register_rig(const Rig& rig, const std::vector<std::vector<Im
     if (level != options.finest_level) coarse = make_clouds(rig, depth_m, level, options);
     Clouds& clouds = level == options.finest_level ? finest : coarse;
     for (int it = 0; it < options.iterations_per_level; ++it, ++schedule_step) {
+      if (options.cancel != nullptr && options.cancel->load()) {
+        result.cancelled = true;
+        result.world_from_depth = world_from_depth_poses(rig);
+        result.joined_to_gauge.assign(cameras, 0);
+        result.rmse_after_m = result.rmse_before_m;
+        result.correspondences_after = result.correspondences_before;
+        result.least_fixed_m.assign(cameras, 0);
+        return result;
+      }
       const float distance = static_cast<float>(options.start_distance_m * std::pow(shrink, schedule_step));
       Eigen::MatrixXd h = Eigen::MatrixXd::Zero(6 * cameras, 6 * cameras);
       Eigen::VectorXd g = Eigen::VectorXd::Zero(6 * cameras);

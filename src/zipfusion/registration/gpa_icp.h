@@ -20,6 +20,7 @@
 //!
 //! Thread safety: the functions are pure; parallel inside (`num_threads`).
 
+#include <atomic>
 #include <vector>
 
 #include "zipfusion/core/geometry.h"
@@ -63,6 +64,9 @@ struct RegistrationOptions {
   double converged_rad = 1e-5;     // a level ends when no camera moves more than this (radians and metres)
   bool measure_fixed = true;       // RegistrationResult::least_fixed_m (one more matching pass over the finest level); false: all 0
   int num_threads = 0;             // 0 = all hardware threads
+  //! When it turns true (Ctrl-C), the refinement ends at the next step with the poses as given,
+  //! no camera joined to the gauge (RegistrationResult::cancelled). May be null; must outlive the call.
+  const std::atomic<bool>* cancel = nullptr;
 
   void validate() const;  // throws InvalidInput naming `zipfusion register`'s option (--trim) or, where it has none, the field
 };
@@ -90,6 +94,7 @@ struct RegistrationResult {
   std::vector<double> least_fixed_m;
   int iterations = 0;                      // Gauss-Newton steps taken over all levels
   bool converged = false;                  // the finest level's last step moved less than converged_rad
+  bool cancelled = false;                  // RegistrationOptions::cancel ended it: the poses are as given
 };
 
 //! Foreground depth in metres (bilateral-filtered with kBilateral) of every camera of one

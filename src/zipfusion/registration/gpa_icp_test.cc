@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -150,6 +152,23 @@ TEST(RegisterRig, TwoNoiseFreeCamerasRecoverAKnownOffset) {
   EXPECT_LT(after.deg, 0.1);
   EXPECT_TRUE(result.world_from_depth[0].isApprox(ring.start.cameras[0].world_from_depth)) << "camera 0 is the gauge";
   EXPECT_LT(result.rmse_after_m[1], result.rmse_before_m[1]);
+}
+
+// Ctrl-C while a rig is refined (`reconstruct` before its first frame): the refinement ends at its
+// next step with the poses as given and no camera joined, which callers take as no refinement.
+TEST(RegisterRig, ACancelledRefinementKeepsThePosesAsGiven) {
+  std::atomic<bool> cancel = false;
+  RegistrationOptions options{.cancel = &cancel};
+  const SyntheticRing ring = make_ring(6, 2, 1.0, 0.03, false, options, 2);
+  const RegistrationResult refined = register_rig(ring.start, ring.depth, options);
+  EXPECT_FALSE(refined.cancelled);
+  EXPECT_FALSE(refined.world_from_depth[1].isApprox(ring.start.cameras[1].world_from_depth));
+  cancel = true;
+  const RegistrationResult cancelled = register_rig(ring.start, ring.depth, options);
+  EXPECT_TRUE(cancelled.cancelled);
+  EXPECT_EQ(cancelled.iterations, 0);
+  EXPECT_TRUE(cancelled.world_from_depth[1].isApprox(ring.start.cameras[1].world_from_depth, 0));
+  EXPECT_EQ(cancelled.joined_to_gauge, (std::vector<char>{0, 0}));
 }
 
 // A camera that shares only the floor with the gauge is joined but not placed: little fixes its
