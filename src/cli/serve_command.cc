@@ -140,12 +140,12 @@ void run_serve(ServeArgs& args) {
   Input in;
   open_input(args.input, r.rig, "serve", in);
   warn_if_world_not_z_up(in.rig, r, "serve");
-  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.take_before_start);
-  reconstruction.say_how_far_poses_moved("serve");
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).
-  const QuantizationBox volume_box = quantization_box(TriangleMesh{}, reconstruction.rig().volume);
-  StreamServer server(args.server, hello_json(reconstruction.rig(), args, volume_box));
+  const QuantizationBox volume_box = quantization_box(TriangleMesh{}, in.rig.volume);
+  // Served before the poses are refined (seconds): a port in use is said at once, and a viewer
+  // can connect meanwhile; its hello is replaced where the refinement moved the cameras.
+  StreamServer server(args.server, hello_json(in.rig, args, volume_box));
 
   install_stop_on_signal();
   const std::string& host = args.server.bind_address;
@@ -155,6 +155,9 @@ void run_serve(ServeArgs& args) {
   if (!args.server.token.empty()) url += "?token=" + args.server.token;
   std::cout << "serving " << url << " (" << in.rig.cameras.size() << " cameras, " << in.rig.fps << " fps, lod "
             << r.options.depth_level << (args.loop ? ", looping" : "") << "; Ctrl-C stops)" << std::endl;
+  Reconstruction reconstruction(in.rig, in.capture ? &*in.capture : nullptr, r, in.range, in.take_before_start);
+  reconstruction.say_how_far_poses_moved("serve");
+  if (!reconstruction.pose_updates().empty()) server.set_hello(hello_json(reconstruction.rig(), args, volume_box));
 
   // A capture plays at its frame rate; live cameras deliver at theirs. Either way a frame set's
   // capture time is when it is handed over.

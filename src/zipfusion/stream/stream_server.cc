@@ -505,6 +505,14 @@ std::string frame_message(const std::string& header_json, const std::string& dra
   return message;
 }
 
+void StreamServer::set_hello(std::string hello_json) {
+  // On the network thread, which alone reads the hello and the sessions.
+  net::post(impl_->io, [impl = impl_.get(), hello = std::make_shared<const std::string>(std::move(hello_json))] {
+    impl->hello = *hello;
+    for (const std::shared_ptr<Session>& session : impl->sessions) session->enqueue(hello, false);
+  });
+}
+
 StreamServer::StreamServer(const StreamServerOptions& options, std::string hello_json) : impl_(std::make_unique<Impl>()) {
   options.validate();
   impl_->options = options;

@@ -80,6 +80,10 @@ class StreamServer {
 
   int port() const;  // the port bound (useful with port 0)
 
+  //! Replaces the hello: sent to the clients connected now and to every one that connects after
+  //! (`serve`: the poses refined after the server started). Thread-safe; returns at once.
+  void set_hello(std::string hello_json);
+
   //! Queues a frame message for every connected client; returns at once.
   void broadcast(std::string message);
 

@@ -211,6 +211,18 @@ TEST_F(StreamServerTest, WithATokenOnlyItsHoldersAreServed) {
   EXPECT_THROW(StreamServer({.port = 0, .token = "a b"}, "{}"), InvalidInput);
 }
 
+// A hello replaced after the server started (`serve` refines the poses after binding its port)
+// goes to the clients connected and to those that come after.
+TEST_F(StreamServerTest, AReplacedHelloReachesEveryClient) {
+  StreamServer server({.port = 0}, R"({"poses":"given"})");
+  Client before(server.port());
+  EXPECT_EQ(before.read(), R"({"poses":"given"})");
+  server.set_hello(R"({"poses":"refined"})");
+  EXPECT_EQ(before.read(), R"({"poses":"refined"})");
+  Client after(server.port());
+  EXPECT_EQ(after.read(), R"({"poses":"refined"})");
+}
+
 // With a flow window of one, a viewer gets a frame only after acknowledging the previous one, and
 // then the newest: no backlog builds up in the network for a viewer slower than the stream.
 TEST_F(StreamServerTest, FlowControlSendsTheNewestFrameAfterEachAck) {
