@@ -148,9 +148,7 @@ nlohmann::ordered_json pose_update(int frame, int version, const std::vector<Rig
 
 }  // namespace
 
-Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range,
-                               const std::function<bool(FrameSet&)>& take_live)
-    : rig_(rig) {
+void apply_reconstruction_args(ReconstructionArgs& args) {
   ReconstructOptions& options = args.options;
   options.bilateral = args.filter != "none";
   options.filter.separable = args.filter == "bilateral-separable";
@@ -161,6 +159,13 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
   options.foreground.crop_to_volume = !args.no_volume_crop;
   options.validate();
   args.background.validate();
+}
+
+Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, ReconstructionArgs& args, const FrameRange& range,
+                               const std::function<bool(FrameSet&)>& take_live)
+    : rig_(rig) {
+  apply_reconstruction_args(args);
+  ReconstructOptions& options = args.options;
   // auto refines untrusted poses before the first frame: the worker alone took its first
   // refinement from frame 0 and then one every 30 frames, and on a rig 2° / 5 cm off the first 34
   // meshes were 16.5–20.1 mm from the truth; refined first, 2.5–3.3 mm (docs/design.md).

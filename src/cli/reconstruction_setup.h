@@ -39,6 +39,11 @@ void add_reconstruction_options(CLI::App* cmd, ReconstructionArgs& args);
 //! face, which is the floor's only in a z-up world. Throws InvalidInput for bad depth options.
 void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, const std::string& command);
 
+//! --mode, --filter, --ownership and --no-volume-crop into `args.options`, then every option
+//! checked (InvalidInput naming it); Reconstruction does it too. For a command that must fail on
+//! a bad option before it starts anything (serve binds its port first).
+void apply_reconstruction_args(ReconstructionArgs& args);
+
 //! The options as JSON (stats.json, the stream's description).
 nlohmann::ordered_json options_json(const ReconstructOptions& options);
 

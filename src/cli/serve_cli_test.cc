@@ -242,10 +242,13 @@ TEST_F(ServeCli, BadOptionsGiveOneLineAndNonZeroExit) {
       {"serve " + capture + " --position-bits 0 --port 0", "--position-bits: must be in [1, 30]"},
       {"serve " + capture + " --token '' --port 0", "--token: must not be empty"},
       {"serve " + (dir_ / "missing").string() + " --port 0", "missing"},
+      // Checked before the port is bound and the address printed (serve binds before refining).
+      {"serve " + capture + " --coarse-shrink 7 --port 0", "--coarse-shrink: must be in (0, 1]"},
   };
   for (const Case& c : cases) {
     const CommandResult r = run(c.args);
     EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_EQ(r.out, "") << c.args;
     EXPECT_EQ(line_count(r.err), 1) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r.err;
   }

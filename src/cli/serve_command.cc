@@ -140,6 +140,7 @@ void run_serve(ServeArgs& args) {
   Input in;
   open_input(args.input, r.rig, "serve", in);
   warn_if_world_not_z_up(in.rig, r, "serve");
+  apply_reconstruction_args(r);  // a bad option is said before the address is
   // One quantisation grid for the whole stream: the capture volume (a mesh reaching outside it
   // grows the grid of that frame only).
   const QuantizationBox volume_box = quantization_box(TriangleMesh{}, in.rig.volume);
