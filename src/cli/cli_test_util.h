@@ -9,8 +9,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
+
+#include "zipfusion/core/geometry.h"
 
 namespace zipfusion::testing {
 
@@ -50,5 +54,17 @@ class CliTest : public ::testing::Test {
 };
 
 inline int line_count(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+
+//! Every camera's pose in one of stats.json's pose_updates (`world_from_depth`, row-major 4×4 each).
+inline std::vector<Rigid3d> poses_of_update(const nlohmann::json& update) {
+  std::vector<Rigid3d> poses;
+  for (const nlohmann::json& rows : update.at("world_from_depth")) {
+    Eigen::Matrix4d m;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) m(i, j) = rows.at(i).at(j).get<double>();
+    poses.emplace_back(m);
+  }
+  return poses;
+}
 
 }  // namespace zipfusion::testing

@@ -1,6 +1,5 @@
 // zipfusion eval: quality of reconstructed meshes against a synthetic capture's ground truth.
 
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -64,13 +63,7 @@ void warn_of_meshes_beyond_capture(const fs::path& recon_dir, int frame_count) {
   std::set<int> beyond;  // frame numbers (a frame's .ply and .obj are one)
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(recon_dir, ec)) {
-    const fs::path name = entry.path().filename();
-    const std::string stem = name.stem().string();
-    if (name.extension() != ".ply" && name.extension() != ".obj") continue;
-    // NNNNNN, wider past frame 999999 (as frame_file_name writes them)
-    if (stem.size() < 6 || stem.size() > 9 || stem.find_first_not_of("0123456789") != std::string::npos) continue;
-    const int frame = std::stoi(stem);
-    if (frame >= frame_count) beyond.insert(frame);
+    if (const int frame = frame_index_of(entry.path(), {".ply", ".obj"}); frame >= frame_count) beyond.insert(frame);
   }
   if (beyond.empty()) return;
   const int count = static_cast<int>(beyond.size());

@@ -77,8 +77,8 @@ class UnreadableFrames {
 Capture open_capture(const std::string& dir, const std::string& command);
 
 //! Opens the capture or the cameras. `rig_path` (--rig): poses for the capture, or the
-//! calibration of live cameras. Throws InvalidInput naming the option. A capture's source warns of each unreadable frame file as `command` and
-//! keeps them in `in.unreadable`.
+//! calibration of live cameras. Throws InvalidInput naming the option. A capture's source warns
+//! of each unreadable frame file as `command` and keeps them in `in.unreadable`.
 void open_input(InputArgs& args, const std::string& rig_path, const std::string& command, Input& in);
 
 }  // namespace zipfusion::cli

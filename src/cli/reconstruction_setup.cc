@@ -134,19 +134,21 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // A pose update of stats.json's pose_updates: the poses swapped in at `frame`, per camera as
-// rig.json writes them (row-major 4×4), so that the poses a mesh was made with can be read back.
+// rig.json writes them, so that the poses a mesh was made with can be read back.
 nlohmann::ordered_json pose_update(int frame, int version, const std::vector<Rigid3d>& world_from_depth) {
   nlohmann::ordered_json poses = nlohmann::json::array();
-  for (const Rigid3d& pose : world_from_depth) {
-    const Eigen::Matrix4d m = pose.matrix();
-    nlohmann::ordered_json rows = nlohmann::json::array();
-    for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
-    poses.push_back(std::move(rows));
-  }
+  for (const Rigid3d& pose : world_from_depth) poses.push_back(matrix_json(pose));
   return {{"frame", frame}, {"version", version}, {"world_from_depth", std::move(poses)}};
 }
 
 }  // namespace
+
+nlohmann::ordered_json matrix_json(const Rigid3d& pose) {
+  const Eigen::Matrix4d m = pose.matrix();
+  nlohmann::ordered_json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  return rows;
+}
 
 void apply_reconstruction_args(ReconstructionArgs& args) {
   ReconstructOptions& options = args.options;
@@ -225,7 +227,7 @@ Reconstruction::Reconstruction(const Rig& rig, const Capture* capture, Reconstru
 }
 
 void Reconstruction::say_how_far_poses_moved(const std::string& command) const {
-  if (pose_updates_.empty() || first_version_ == 0) return;
+  if (first_version_ == 0) return;
   // Refined before the first frame: how far the calibration was off is worth a line.
   const RelativePoseError moved = worst_relative_pose_error(world_from_depth_poses(start_rig_), world_from_depth_poses(rig_));
   std::cout << format("%s: poses refined before the first frame in %.1f s; cameras moved by up to %.1f mm and %.2f deg relative to %s\n",

@@ -44,6 +44,9 @@ void warn_if_world_not_z_up(const Rig& rig, const ReconstructionArgs& args, cons
 //! a bad option before it starts anything (serve binds its port first).
 void apply_reconstruction_args(ReconstructionArgs& args);
 
+//! A pose as rig.json writes it (row-major 4×4 rows), for stats.json and the stream's hello.
+nlohmann::ordered_json matrix_json(const Rigid3d& pose);
+
 //! The options as JSON (stats.json, the stream's description).
 nlohmann::ordered_json options_json(const ReconstructOptions& options);
 

@@ -18,6 +18,7 @@
 #include <sstream>
 #include <thread>
 
+#include "cli/cli_test_util.h"
 #include "zipfusion/core/error.h"
 #include "zipfusion/io/capture.h"
 #include "zipfusion/io/file_util.h"
@@ -291,13 +292,8 @@ TEST_F(RecordCli, LiveCamerasAreRefinedBeforeTheFirstMesh) {
   EXPECT_EQ(first["frame"], 0);
   EXPECT_EQ(first["version"], 1);
   // The poses the meshes were made with, read back: cam1 relative to cam0 as the truth has it.
-  auto pose = [](const nlohmann::json& rows) {
-    Eigen::Matrix4d m;
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) m(i, j) = rows[i][j].get<double>();
-    return Rigid3d(m);
-  };
-  const Rigid3d refined = pose(first["world_from_depth"][0]).inverse() * pose(first["world_from_depth"][1]);
+  const std::vector<Rigid3d> used = testing::poses_of_update(first);
+  const Rigid3d refined = used[0].inverse() * used[1];
   const Rigid3d wanted = truth.cameras[0].world_from_depth.inverse() * truth.cameras[1].world_from_depth;
   const Rigid3d error = wanted.inverse() * refined;
   EXPECT_LT(Eigen::AngleAxisd(error.linear()).angle() * 180 / std::numbers::pi, 0.5);

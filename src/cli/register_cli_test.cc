@@ -94,14 +94,7 @@ TEST_F(RegisterCli, AnUntrustedCaptureIsRefinedBeforeItsFirstFrameByDefault) {
   EXPECT_EQ(first_update.at("version"), 1);
   // The poses the meshes were made with, as rig.json writes them: here within 1 cm of the truth.
   const Rig true_rig = read_rig(capture + "/ground_truth/rig.json");
-  std::vector<Rigid3d> used;
-  for (const nlohmann::json& rows : first_update.at("world_from_depth")) {
-    Eigen::Matrix4d m;
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) m(i, j) = rows.at(i).at(j).get<double>();
-    used.emplace_back(m);
-  }
-  EXPECT_LT(worst_relative_pose_error(used, world_from_depth_poses(true_rig)).translation_m, 0.01);
+  EXPECT_LT(worst_relative_pose_error(testing::poses_of_update(first_update), world_from_depth_poses(true_rig)).translation_m, 0.01);
   // The worker's windows (one to four frame sets, levels 3→2) do not move poses refined on more
   // frames at a finer level without a clear gain: the meshes are those of --register once, byte
   // for byte. (They used to publish noise: 2.5 → 5.5 mm on 40 frames of such a ring.)

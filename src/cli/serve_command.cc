@@ -48,12 +48,6 @@ fs::path viewer_folder(const std::string& web) {
   return ec ? fs::path("web") : exe.parent_path() / "web";
 }
 
-nlohmann::ordered_json matrix_json(const Rigid3d& t) {
-  nlohmann::ordered_json rows = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({t.matrix()(r, 0), t.matrix()(r, 1), t.matrix()(r, 2), t.matrix()(r, 3)});
-  return rows;
-}
-
 // What a viewer learns first: the stream's format, frame rate, cameras (for the views from
 // each camera) and volume.
 std::string hello_json(const Rig& rig, const ServeArgs& args, const QuantizationBox& box) {
